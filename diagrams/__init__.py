@@ -1,0 +1,1 @@
+"""Named scenario files (*.scenarios.yaml) shipped with sm2ith_drake."""

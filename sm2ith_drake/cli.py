@@ -1,0 +1,185 @@
+"""The ``sm2ith`` command line: run | bench.
+
+Errors a user can cause (missing file, unknown scenario, malformed YAML, an
+unknown key) print one line and exit with code 2, without a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+EXIT_USAGE = 2
+
+
+class UserError(Exception):
+    """An error in the user's input: printed as one line, exit code 2."""
+
+
+def _Load(filename: str, name: str, text: str):
+    from sm2ith_drake.scenario import LoadScenario, ScenarioError
+
+    try:
+        return LoadScenario(filename=filename, scenario_name=name, scenario_text=text)
+    except FileNotFoundError as e:
+        raise UserError(str(e)) from e
+    except ScenarioError as e:
+        raise UserError(str(e)) from e
+
+
+def _Run(args) -> int:
+    from sm2ith_drake.diagrams import MakeSimulation, RunSimulation
+    from sm2ith_drake.experiments.metrics import FormatMetrics
+
+    scenario = _Load(args.file, args.scenario, args.scenario_text)
+    if args.graphviz:
+        diagram = MakeSimulation(scenario=scenario)
+        _WriteGraphviz(diagram, args.graphviz)
+        print(f"wrote {args.graphviz}")
+    meshcat = None
+    html = args.html
+    if not args.no_meshcat:
+        from pydrake.geometry import Meshcat
+
+        meshcat = Meshcat()
+        print(f"Meshcat: {meshcat.web_url()}")
+        if html is None:
+            html = str(Path("out") / f"{args.scenario}.html")
+    elif html:
+        raise UserError("--html needs Meshcat; drop --no-meshcat")
+    result = RunSimulation(
+        scenario, meshcat=meshcat, duration=args.duration, html_path=html,
+        progress=sys.stderr.isatty(),
+    )
+    print(f"scenario {args.scenario} ({scenario.robot.model}, "
+          f"{scenario.controller.method}/{scenario.controller.solver}):")
+    print(FormatMetrics(result.metrics))
+    if result.html_path:
+        print(f"replay saved to {result.html_path}")
+    return 0
+
+
+def _WriteGraphviz(diagram, path: str) -> None:
+    dot = diagram.GetGraphvizString(max_depth=1)
+    if path.endswith(".dot"):
+        Path(path).write_text(dot)
+        return
+    try:
+        import pydot
+    except ImportError as e:
+        raise UserError("writing an image needs pydot; use a .dot file name") from e
+    (graph,) = pydot.graph_from_dot_data(dot)
+    fmt = Path(path).suffix.lstrip(".") or "svg"
+    graph.write(path, format=fmt)
+
+
+def BenchmarkScenario(robot: str, humans: int, predictor: str, solver: str = "rti"):
+    from sm2ith_drake.resources import GetDiagramsDir
+
+    if humans:
+        raise UserError("--humans > 0 needs the human predictors (not available yet)")
+    text = f"{{controller: {{solver: {solver}}}}}"
+    return _Load(str(GetDiagramsDir() / "benchmark.scenarios.yaml"),
+                 f"bench_{robot}", text)
+
+
+def RunBenchmark(*, robot: str, humans: int = 0, predictor: str = "orca_kkt",
+                 steps: int = 100, solver: str = "rti") -> dict:
+    """Runs the benchmark closed loop; returns the per-step timing figures."""
+    from sm2ith_drake.diagrams import RunSimulation
+    from sm2ith_drake.scenario import ControlPeriod
+
+    scenario = BenchmarkScenario(robot, humans, predictor, solver)
+    duration = (steps - 0.5) * ControlPeriod(scenario.controller)
+    result = RunSimulation(scenario, duration=duration)
+    records = [r for r in result.log.records if r.mode != "none"]
+    wall = np.array([r.wall_time for r in records]) * 1e3
+    iters = np.array([r.iterations for r in records], dtype=float)
+    c = result.log.counters
+    return {
+        "robot": robot,
+        "humans": humans,
+        "predictor": predictor if humans else "none",
+        "solver": solver,
+        "steps": len(records),
+        "median_ms": float(np.median(wall)),
+        "p95_ms": float(np.percentile(wall, 95)),
+        "max_ms": float(wall.max()),
+        "mean_iterations": float(iters.mean()),
+        "solver_failures": int(c.solver_failures),
+        "fallbacks": int(c.fallbacks),
+    }
+
+
+def _Bench(args) -> int:
+    robots = ["ridgeback_ur10", "stretch3"] if args.robot == "all" else [args.robot]
+    results = []
+    for robot in robots:
+        r = RunBenchmark(robot=robot, humans=args.humans, predictor=args.predictor,
+                         steps=args.steps, solver=args.solver)
+        results.append(r)
+        print(f"{robot:15s} solver={r['solver']} steps={r['steps']}  "
+              f"median {r['median_ms']:.1f} ms  p95 {r['p95_ms']:.1f} ms  "
+              f"max {r['max_ms']:.1f} ms  mean iterations {r['mean_iterations']:.1f}  "
+              f"failures {r['solver_failures']}  fallbacks {r['fallbacks']}")
+    if args.json:
+        Path(args.json).write_text(
+            json.dumps(results[0] if len(results) == 1 else results, indent=2)
+        )
+        print(f"wrote {args.json}")
+    return 0
+
+
+def MakeParser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="sm2ith",
+        description="SM2ITH mobile manipulation among people (Drake).",
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+    run = sub.add_parser("run", help="simulate a named scenario")
+    run.add_argument("file", help="a diagrams/*.scenarios.yaml file")
+    run.add_argument("--scenario", required=True, help="scenario name in the file")
+    run.add_argument("--scenario_text", default="{}",
+                     help="YAML applied on top of the scenario, e.g. "
+                          "'{controller: {method: weighted_sum}}'")
+    run.add_argument("--duration", type=float, default=None,
+                     help="simulated seconds (default: the scenario's)")
+    run.add_argument("--no-meshcat", action="store_true", help="no visualization")
+    run.add_argument("--html", default=None,
+                     help="where to save the HTML replay (default out/NAME.html)")
+    run.add_argument("--graphviz", default=None,
+                     help="write the diagram (.dot, or .svg/.png with pydot)")
+    run.set_defaults(func=_Run)
+
+    bench = sub.add_parser("bench", help="measure the controller's speed")
+    bench.add_argument("--robot", default="ridgeback_ur10",
+                       choices=["ridgeback_ur10", "stretch3", "all"])
+    bench.add_argument("--humans", type=int, default=0)
+    bench.add_argument("--predictor", default="orca_kkt",
+                       choices=["orca_kkt", "cvmm", "react"])
+    bench.add_argument("--steps", type=int, default=100)
+    bench.add_argument("--solver", default="rti", choices=["rti", "snopt", "ipopt"])
+    bench.add_argument("--json", default=None, help="write the figures as JSON")
+    bench.set_defaults(func=_Bench)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = MakeParser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except UserError as e:
+        print(f"sm2ith: error: {e}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print("sm2ith: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,195 @@
+"""One control step: warm start, hierarchical solve, and the safe fallback.
+
+A solve that fails or overruns its wall-clock budget never leaves the robot
+without a command: the previous plan, shifted, is replayed while it remains
+consistent with the measured state (for at most ``max_fallback_steps``
+steps); otherwise the robot brakes as hard as its acceleration limits allow.
+Every fallback is counted.
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sm2ith_drake.control.htmpc import HierarchicalSolver, MpcSolution
+from sm2ith_drake.control.program import MpcProgram
+from sm2ith_drake.control.tasks import MakeTask
+from sm2ith_drake.scenario import ControlPeriod, ControllerConfig
+
+# A replayed plan is consistent while the measured ν is this close (per
+# component) to the ν the plan predicted for now.
+_PLAN_CONSISTENCY_TOL = 0.05
+
+
+@dataclass
+class ControllerCounters:
+    steps: int = 0
+    solver_failures: int = 0
+    overruns: int = 0
+    fallbacks: int = 0
+    shifted_plan_fallbacks: int = 0
+    braking_fallbacks: int = 0
+
+
+@dataclass
+class StepRecord:
+    """What happened in one control step (for metrics and the benchmark)."""
+
+    time: float = 0.0
+    wall_time: float = 0.0
+    solve_time: float = 0.0
+    iterations: int = 0
+    success: bool = True
+    mode: str = "none"  # "solved" | "shifted_plan" | "brake"
+    status: str = ""
+
+
+@dataclass
+class ControllerState:
+    """The controller's persistent state (held in the Context)."""
+
+    # The last plan that was solved successfully, and how many control steps
+    # ago it was solved.
+    plan: MpcSolution | None = None
+    plan_age: int = 0
+    # The most recent solve attempt (successful or not), for visualization
+    # and diagnostics.
+    last_solution: MpcSolution | None = None
+    command_u: np.ndarray | None = None
+    command_nu: np.ndarray | None = None
+    counters: ControllerCounters = field(default_factory=ControllerCounters)
+    record: StepRecord = field(default_factory=StepRecord)
+
+
+def BrakingAcceleration(robot, nu: np.ndarray, period: float) -> np.ndarray:
+    """Drives ν toward zero as fast as the acceleration limits allow."""
+    return np.clip(-np.asarray(nu) / period, robot.nudot_lower, robot.nudot_upper)
+
+
+class MpcController:
+    """The plain-Python controller behind the HierarchicalMpc LeafSystem."""
+
+    def __init__(self, robot, tasks, config: ControllerConfig):
+        self.robot = robot
+        self.config = config
+        self.tasks = [
+            t if not hasattr(t, "kind") else MakeTask(t, robot.num_positions)
+            for t in tasks
+        ]
+        names = [t.name for t in self.tasks]
+        if len(set(names)) != len(names):
+            raise ValueError(f"task names must be unique: {names}")
+        self.program = MpcProgram(
+            robot=robot,
+            tasks=self.tasks,
+            horizon=config.horizon,
+            time_step=config.time_step,
+            self_collision_distance=config.self_collision_distance,
+            effort_weight_nu=config.effort_weight_nu,
+            effort_weight_u=config.effort_weight_u,
+        )
+        self.solver = HierarchicalSolver(
+            self.program,
+            method=config.method,
+            solver=config.solver,
+            solver_options=config.solver_options,
+            lexicographic_tolerance=config.lexicographic_tolerance,
+            rti_iterations=config.rti_iterations,
+        )
+        self.period = ControlPeriod(config)
+        self.shift = max(1, int(round(self.period / config.time_step)))
+
+    def WarmStart(self, state: ControllerState, q0, nu0) -> np.ndarray:
+        """The previous plan's inputs shifted by one control period and rolled
+        out from the measured state (a dynamically consistent guess)."""
+        N, m = self.program.layout.N, self.robot.num_velocities
+        u = np.zeros((N, m))
+        if state.plan is not None:
+            prev = state.plan.u[self.shift * (state.plan_age + 1):]
+            u[: len(prev)] = prev
+            if len(prev) and len(prev) < N:
+                u[len(prev):] = 0.0
+        return self.program.Rollout(q0, nu0, u)
+
+    def Step(self, state: ControllerState, *, time_now: float, q0, nu0,
+             targets: dict) -> ControllerState:
+        """Computes the next command; returns the new state (input unchanged)."""
+        start = time.perf_counter()
+        q0 = np.asarray(q0, dtype=float)
+        nu0 = np.asarray(nu0, dtype=float)
+        new = copy.copy(state)
+        new.counters = copy.copy(state.counters)
+        new.counters.steps += 1
+        record = StepRecord(time=time_now)
+        solution = None
+        if np.all(np.isfinite(q0)) and np.all(np.isfinite(nu0)):
+            try:
+                solution = self.solver.Solve(
+                    q0=q0, nu0=nu0, targets=targets,
+                    z_guess=self.WarmStart(state, q0, nu0),
+                )
+            except (RuntimeError, ValueError, np.linalg.LinAlgError) as e:
+                record.status = f"solver error: {e}"
+        else:
+            record.status = "non-finite robot state"
+        elapsed = time.perf_counter() - start
+        ok = solution is not None and solution.success
+        if solution is not None:
+            record.solve_time = solution.solve_time
+            record.iterations = solution.iterations
+            record.status = solution.status
+            new.last_solution = solution
+        if not ok:
+            new.counters.solver_failures += 1
+        elif self.config.time_budget > 0 and elapsed > self.config.time_budget:
+            ok = False
+            new.counters.overruns += 1
+            record.status = f"overrun ({elapsed * 1e3:.0f} ms)"
+        if ok:
+            new.plan, new.plan_age = solution, 0
+            u = solution.u[0]
+            record.mode = "solved"
+        else:
+            new.counters.fallbacks += 1
+            u = self._ReplayPlan(state, nu0)
+            if u is not None:
+                new.plan_age = state.plan_age + 1
+                new.counters.shifted_plan_fallbacks += 1
+                record.mode = "shifted_plan"
+            else:
+                safe_nu = np.nan_to_num(nu0)
+                u = BrakingAcceleration(self.robot, safe_nu, self.period)
+                new.plan = None
+                new.counters.braking_fallbacks += 1
+                record.mode = "brake"
+        record.success = ok
+        nu_now = np.nan_to_num(nu0)
+        new.command_u = np.asarray(u, dtype=float)
+        new.command_nu = np.clip(
+            nu_now + self.period * new.command_u, self.robot.nu_lower, self.robot.nu_upper
+        )
+        record.wall_time = time.perf_counter() - start
+        new.record = record
+        return new
+
+    def _ReplayPlan(self, state: ControllerState, nu0):
+        plan = state.plan
+        if plan is None:
+            return None
+        age = state.plan_age + 1
+        j = self.shift * age
+        if age > self.config.max_fallback_steps or j >= len(plan.u):
+            return None
+        if not np.all(np.isfinite(nu0)):
+            return None
+        if np.max(np.abs(plan.nu[j] - nu0)) > _PLAN_CONSISTENCY_TOL:
+            return None
+        return plan.u[j]
+
+    def InitialState(self) -> ControllerState:
+        m = self.robot.num_velocities
+        return ControllerState(command_u=np.zeros(m), command_nu=np.zeros(m))

@@ -1,0 +1,411 @@
+"""Hierarchical task MPC (eqs. htmpc, stmpc) and the weighted-sum baseline.
+
+The lexicographic problem is solved as a sequence of single-task MPCs: stage ℓ
+minimizes J_ℓ + J_eff subject to the shared constraints and, for every higher
+task i < ℓ, |e_i,k,p| ≤ |e*_i,k,p| + tol at every step k and component p, where
+e*_i is task i's error at the stage-i solution (eq. stmpc_lex_constr).
+
+Two solvers:
+
+- :class:`RtiStageSolver` (default): real-time iteration. All groups are
+  linearized at the warm start (the shifted previous plan), and each stage is
+  one sparse QP (Gauss–Newton Hessian for the task costs) solved by OSQP in a
+  workspace set up once and only updated afterwards. With one iteration per
+  step every stage shares the linearization, so e*_i is the linearized error
+  of stage i and the stage-i solution is feasible for every later stage: the
+  hierarchy can never make a QP infeasible.
+- :class:`NlpStageSolver`: the full nonlinear stage problems in
+  MathematicalProgram (built once, bounds updated per step) with SNOPT or
+  IPOPT, using the same functions and analytic Jacobians. Slower; the
+  validation reference.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from sm2ith_drake.control.program import ConstraintGroup, MpcProgram
+from sm2ith_drake.control.tasks import Task
+
+
+@dataclass
+class Stage:
+    """One single-task MPC of the hierarchy (or the one weighted-sum problem)."""
+
+    name: str
+    # (task, weight multiplier) pairs in the cost.
+    cost_tasks: list[tuple[Task, float]]
+    # Higher-priority tasks held by lexicographic constraints.
+    lexicographic_tasks: list[Task]
+
+
+def MakeStages(tasks: list[Task], method: str) -> list[Stage]:
+    """The stages of ``htmpc`` (one per task, in priority order) or of the
+    ``weighted_sum`` baseline (one stage, W_ℓ J_ℓ summed)."""
+    if method == "weighted_sum":
+        return [Stage("weighted_sum", [(t, t.weighted_sum_weight) for t in tasks], [])]
+    return [Stage(t.name, [(t, 1.0)], list(tasks[:i])) for i, t in enumerate(tasks)]
+
+
+@dataclass
+class StageResult:
+    z: np.ndarray
+    success: bool
+    status: str
+    iterations: int
+    # Errors of every task of this and higher priority at this stage's
+    # solution, by task name, shape (N, s) for k = 1..N. For the RTI these
+    # are the linearized errors the lexicographic constraints act on.
+    errors: dict = field(default_factory=dict)
+
+
+@dataclass
+class MpcSolution:
+    """The outcome of one control step, held in the controller's state."""
+
+    z: np.ndarray
+    q: np.ndarray  # (N+1, n) planned configurations
+    nu: np.ndarray  # (N+1, m)
+    u: np.ndarray  # (N, m)
+    p_WE: np.ndarray  # (N+1, 3) planned EE path
+    success: bool
+    status: str
+    stages: list[StageResult]
+    solve_time: float
+    iterations: int
+
+
+class _Qp:
+    """A sparse QP with a fixed pattern in a persistent OSQP workspace."""
+
+    def __init__(self, *, num_variables, p_pattern, a_pattern, settings):
+        import osqp
+
+        self._osqp = osqp
+        self.n = num_variables
+        self.settings = settings
+        # P: upper triangle, CSC; values gathered from a dense matrix.
+        rows, cols = p_pattern
+        keep = rows <= cols
+        Ps = sp.csc_matrix(
+            (np.ones(keep.sum()), (rows[keep], cols[keep])), shape=(self.n, self.n)
+        )
+        Ps.sum_duplicates()
+        Ps.sort_indices()
+        self._p_indptr, self._p_indices = Ps.indptr, Ps.indices
+        self._p_cols = np.repeat(np.arange(self.n), np.diff(Ps.indptr))
+        # A: rows × n; the COO order of the groups mapped to CSC order.
+        arows, acols = a_pattern
+        self.num_rows = int(arows.max()) + 1 if arows.size else 0
+        order = np.lexsort((arows, acols))
+        self._a_perm = order
+        self._a_indices = arows[order]
+        self._a_indptr = np.concatenate(
+            [[0], np.cumsum(np.bincount(acols, minlength=self.n))]
+        )
+        self._solver = None
+
+    def Solve(self, P_dense, q, a_values, lower, upper, x0, y0):
+        Px = P_dense[self._p_indices, self._p_cols]
+        Ax = a_values[self._a_perm]
+        try:
+            if self._solver is None:
+                P = sp.csc_matrix((Px, self._p_indices, self._p_indptr), (self.n, self.n))
+                A = sp.csc_matrix(
+                    (Ax, self._a_indices, self._a_indptr), (self.num_rows, self.n)
+                )
+                solver = self._osqp.OSQP()
+                solver.setup(P, q, A, lower, upper, **self.settings)
+                self._solver = solver
+            else:
+                self._solver.update(q=q, l=lower, u=upper, Px=Px, Ax=Ax)
+            if x0 is not None:
+                if y0 is not None and y0.size == self.num_rows:
+                    self._solver.warm_start(x=x0, y=y0)
+                else:
+                    self._solver.warm_start(x=x0)
+            res = self._solver.solve()
+        except Exception as e:  # noqa: BLE001 (an invalid setting, a NaN)
+            self._solver = None
+            return None, None, f"osqp error: {e}", 0
+        return res.x, res.y, res.info.status, int(res.info.iter)
+
+
+_OSQP_DEFAULTS = dict(
+    verbose=False,
+    eps_abs=1e-5,
+    eps_rel=1e-5,
+    max_iter=4000,
+    polishing=True,
+    adaptive_rho=True,
+)
+
+
+def _Linearize(group: ConstraintGroup, point, num_variables):
+    g, vals = group.Eval(point)
+    Jz = np.bincount(group.rows, vals * point.z[group.cols], minlength=group.num_rows)
+    # g(z) ≈ J z + c,  c = g(z̄) − J z̄.
+    return vals, g - Jz
+
+
+class RtiStageSolver:
+    """Solves one stage as a sparse QP linearized at a point (see module doc)."""
+
+    def __init__(self, program: MpcProgram, stage: Stage, osqp_options: dict,
+                 proximal_weight: float = 1e-4):
+        self.program = program
+        self.stage = stage
+        self.proximal_weight = proximal_weight
+        nv = program.layout.num_variables
+        self._nv = nv
+        self._shared = program.ConstraintGroups()
+        self._lex = [program.task_groups[t.name] for t in stage.lexicographic_tasks]
+        self._cost = [(program.task_groups[t.name], w) for t, w in stage.cost_tasks]
+        # A = [I; shared groups; lexicographic groups].
+        rows, cols, offset = [np.arange(nv)], [np.arange(nv)], nv
+        for group in [g for g, _, _ in self._shared] + self._lex:
+            rows.append(group.rows + offset)
+            cols.append(group.cols)
+            offset += group.num_rows
+        a_pattern = (np.concatenate(rows), np.concatenate(cols))
+        # P pattern: diagonal plus the structure of Jᵀ J of every cost group.
+        prows, pcols = [np.arange(nv)], [np.arange(nv)]
+        for group, _ in self._cost:
+            S = sp.csr_matrix(
+                (np.ones(group.rows.size), (group.rows, group.cols)),
+                shape=(group.num_rows, nv),
+            )
+            S = (S.T @ S).tocoo()
+            prows.append(S.row)
+            pcols.append(S.col)
+        p_pattern = (np.concatenate(prows), np.concatenate(pcols))
+        settings = dict(_OSQP_DEFAULTS)
+        settings.update(osqp_options)
+        self._qp = _Qp(num_variables=nv, p_pattern=p_pattern, a_pattern=a_pattern,
+                       settings=settings)
+
+    def Solve(self, point, *, lower, upper, lex_bounds: dict, linearizations: dict,
+              y0=None):
+        """One QP at ``point``. ``lex_bounds`` maps task names to |e*| + tol;
+        ``linearizations`` caches (values, c) per group for this point."""
+        program, nv = self.program, self._nv
+
+        def lin(group):
+            key = id(group)
+            if key not in linearizations:
+                linearizations[key] = _Linearize(group, point, nv)
+            return linearizations[key]
+
+        P = np.zeros((nv, nv))
+        qvec = np.zeros(nv)
+        for group, scale in self._cost:
+            vals, c = lin(group)
+            w = scale * group.task.StageWeights(program.layout.N).ravel()
+            J = group.DenseJacobian(vals, nv)
+            WJ = w[:, None] * J
+            P += J.T @ WJ
+            qvec += WJ.T @ c
+        rho = self.proximal_weight
+        P[np.diag_indices(nv)] += program.effort_diagonal + rho
+        qvec -= rho * point.z
+        a_vals = [np.ones(nv)]
+        lo, hi = [lower], [upper]
+        for group, glo, ghi in self._shared:
+            vals, c = lin(group)
+            a_vals.append(vals)
+            lo.append(glo - c)
+            hi.append(ghi - c)
+        for group in self._lex:
+            vals, c = lin(group)
+            b = lex_bounds[group.task.name]
+            a_vals.append(vals)
+            lo.append(-b - c)
+            hi.append(b - c)
+        x, y, status, iters = self._qp.Solve(
+            P, qvec, np.concatenate(a_vals), np.concatenate(lo), np.concatenate(hi),
+            point.z, y0,
+        )
+        success = status in ("solved",)
+        errors = {}
+        if x is not None and np.all(np.isfinite(x)):
+            for group in self._lex + [g for g, _ in self._cost]:
+                vals, c = lin(group)
+                e = np.bincount(group.rows, vals * x[group.cols], minlength=group.num_rows)
+                errors[group.task.name] = (e + c).reshape(program.layout.N, -1)
+        else:
+            success = False
+        return StageResult(z=x, success=success, status=status, iterations=iters,
+                           errors=errors)
+
+
+class NlpStageSolver:
+    """One stage as a nonlinear MathematicalProgram (built once) solved by
+    SNOPT or IPOPT with analytic Jacobians (see module doc)."""
+
+    def __init__(self, program: MpcProgram, stage: Stage, solver_name: str,
+                 solver_options):
+        from pydrake.solvers import IpoptSolver, MathematicalProgram, SnoptSolver
+
+        self.program = program
+        self.stage = stage
+        self._solver = SnoptSolver() if solver_name == "snopt" else IpoptSolver()
+        if not self._solver.available() or not self._solver.enabled():
+            raise RuntimeError(f"solver {solver_name} is not available in this Drake")
+        self._options = solver_options
+        nv = program.layout.num_variables
+        self._nv = nv
+        prog = MathematicalProgram()
+        self._z = prog.NewContinuousVariables(nv, "z")
+        self._bounds = prog.AddBoundingBoxConstraint(
+            np.full(nv, -np.inf), np.full(nv, np.inf), self._z
+        )
+        self._targets = {}
+        self._cache = {"key": None, "point": None}
+        for group, lo, hi in program.ConstraintGroups():
+            prog.AddConstraint(self._Wrap(group), lo, hi, self._z,
+                               description=group.name)
+        self._lex = {}
+        for task in stage.lexicographic_tasks:
+            group = program.task_groups[task.name]
+            big = np.full(group.num_rows, np.inf)
+            self._lex[task.name] = prog.AddConstraint(
+                self._Wrap(group), -big, big, self._z, description="lex:" + task.name
+            )
+        self._cost_groups = [(program.task_groups[t.name], w) for t, w in stage.cost_tasks]
+        prog.AddCost(self._CostFunction, self._z, description="tasks")
+        prog.AddQuadraticCost(
+            np.diag(program.effort_diagonal), np.zeros(nv), self._z, is_convex=True
+        )
+        self._prog = prog
+
+    def _Point(self, z):
+        key = z.tobytes()
+        if self._cache["key"] != key:
+            self._cache["key"] = key
+            self._cache["point"] = self.program.MakePoint(z.copy(), self._targets)
+        return self._cache["point"]
+
+    def _Wrap(self, group):
+        from pydrake.autodiffutils import ExtractGradient, ExtractValue, InitializeAutoDiff
+
+        nv = self._nv
+
+        def f(x):
+            if x.dtype == float:
+                g, _ = group.Eval(self._Point(x))
+                return g
+            xv = ExtractValue(x).reshape(-1)
+            g, vals = group.Eval(self._Point(xv))
+            J = group.DenseJacobian(vals, nv)
+            return InitializeAutoDiff(g, J @ ExtractGradient(x)).reshape(-1)
+
+        return f
+
+    def _CostFunction(self, x):
+        from pydrake.autodiffutils import ExtractGradient, ExtractValue, InitializeAutoDiff
+
+        autodiff = x.dtype != float
+        xv = ExtractValue(x).reshape(-1) if autodiff else x
+        point = self._Point(xv)
+        cost, grad = 0.0, np.zeros(self._nv)
+        for group, scale in self._cost_groups:
+            g, vals = group.Eval(point)
+            w = scale * group.task.StageWeights(self.program.layout.N).ravel()
+            cost += 0.5 * np.sum(w * g * g)
+            if autodiff:
+                grad += group.DenseJacobian(vals, self._nv).T @ (w * g)
+        if not autodiff:
+            return cost
+        return InitializeAutoDiff(np.array([cost]), (grad @ ExtractGradient(x))[None, :])[0, 0]
+
+    def Solve(self, point, *, lower, upper, lex_bounds: dict, linearizations=None,
+              y0=None):
+        self._targets.clear()
+        self._targets.update(point.targets)
+        self._cache["key"] = None
+        self._bounds.evaluator().set_bounds(lower, upper)
+        for name, binding in self._lex.items():
+            b = lex_bounds[name]
+            binding.evaluator().set_bounds(-b, b)
+        result = self._solver.Solve(self._prog, point.z, self._options)
+        z = result.GetSolution(self._z)
+        success = bool(result.is_success())
+        errors = {}
+        final = self.program.MakePoint(z, point.targets)
+        for task in self.stage.lexicographic_tasks + [t for t, _ in self.stage.cost_tasks]:
+            g, _ = self.program.task_groups[task.name].Eval(final)
+            errors[task.name] = g.reshape(self.program.layout.N, -1)
+        return StageResult(z=z, success=success, status=str(result.get_solution_result()),
+                           iterations=-1, errors=errors)
+
+
+class HierarchicalSolver:
+    """Solves the whole hierarchy (or the weighted sum) for one control step."""
+
+    def __init__(self, program: MpcProgram, *, method: str = "htmpc",
+                 solver: str = "rti", solver_options=None,
+                 lexicographic_tolerance: float = 1e-3, rti_iterations: int = 1):
+        from pydrake.solvers import SolverOptions
+
+        self.program = program
+        self.method = method
+        self.solver_name = solver
+        self.tolerance = lexicographic_tolerance
+        self.rti_iterations = max(1, int(rti_iterations))
+        self.stages = MakeStages(program.tasks, method)
+        options = solver_options if solver_options is not None else SolverOptions()
+        if solver == "rti":
+            osqp_options = dict(options.options.get("OSQP", {}))
+            self._solvers = [RtiStageSolver(program, s, osqp_options) for s in self.stages]
+        else:
+            self._solvers = [NlpStageSolver(program, s, solver, options)
+                             for s in self.stages]
+
+    def Solve(self, *, q0, nu0, targets: dict, z_guess: np.ndarray) -> MpcSolution:
+        """Runs every stage in priority order from the initial guess."""
+        start = time.perf_counter()
+        program = self.program
+        lower, upper = program.VariableBounds(q0, nu0)
+        point = program.MakePoint(z_guess, targets)
+        linearizations: dict = {}
+        lex_bounds: dict = {}
+        results: list[StageResult] = []
+        success, status = True, "solved"
+        z = z_guess
+        for stage, solver in zip(self.stages, self._solvers):
+            iterations = self.rti_iterations if self.solver_name == "rti" else 1
+            result = None
+            for it in range(iterations):
+                if it > 0 or (self.rti_iterations > 1 and results):
+                    point = program.MakePoint(z, targets)
+                    linearizations = {}
+                result = solver.Solve(point, lower=lower, upper=upper,
+                                      lex_bounds=lex_bounds,
+                                      linearizations=linearizations)
+                if not result.success:
+                    break
+                z = result.z
+            results.append(result)
+            if not result.success:
+                success, status = False, f"stage '{stage.name}': {result.status}"
+                break
+            for task, _ in stage.cost_tasks:
+                e_star = result.errors[task.name]
+                if self.solver_name == "rti" and self.rti_iterations > 1:
+                    # Nonlinear errors at the converged stage solution.
+                    final = program.MakePoint(z, targets)
+                    e_star = program.task_groups[task.name].Eval(final)[0].reshape(
+                        e_star.shape)
+                lex_bounds[task.name] = np.abs(e_star).ravel() + self.tolerance
+        q, nu, u = program.layout.Split(z)
+        kin = program.robot.CalcKinematics(q)
+        return MpcSolution(
+            z=z, q=q, nu=nu, u=u, p_WE=np.asarray(kin.p_WE),
+            success=success, status=status, stages=results,
+            solve_time=time.perf_counter() - start,
+            iterations=int(sum(r.iterations for r in results if r is not None)),
+        )

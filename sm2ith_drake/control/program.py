@@ -1,0 +1,299 @@
+"""One MPC program: variables, constraint groups and least-squares costs.
+
+The program is described once, as groups of vector-valued functions with a
+fixed sparsity pattern: each group evaluates its values g(z̄) and the nonzeros
+of ∂g/∂z at a point z̄. Two solvers consume that description
+(:mod:`sm2ith_drake.control.htmpc`): the real-time iteration, which linearizes
+every group at the warm start and solves sparse QPs in a persistent OSQP
+workspace, and the nonlinear path, which hands the same functions with their
+analytic Jacobians to SNOPT or IPOPT through a MathematicalProgram.
+
+Variables (eq. htmpc): q_0..q_N (configuration), ν_0..ν_N (pseudo-velocities)
+and u_0..u_{N-1} = ν̇ (input). Predictors of human motion append their own
+variables and groups through :meth:`VariableLayout.AddVariables` and
+:class:`ConstraintGroup`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sm2ith_drake.control.tasks import Task
+from sm2ith_drake.geometry import capsule_distance_and_gradient
+
+
+class VariableLayout:
+    """Indices of the decision variables in the flat vector z."""
+
+    def __init__(self, *, num_positions: int, num_velocities: int, horizon: int):
+        n, m, N = num_positions, num_velocities, horizon
+        self.n, self.m, self.N = n, m, N
+        self.num_variables = 0
+        self.q = self.AddVariables("q", (N + 1, n))
+        self.nu = self.AddVariables("nu", (N + 1, m))
+        self.u = self.AddVariables("u", (N, m))
+        self.robot_variables = self.num_variables
+
+    def AddVariables(self, name: str, shape: tuple[int, ...]) -> np.ndarray:
+        """Appends variables to z; returns their indices with the given shape."""
+        count = int(np.prod(shape))
+        idx = np.arange(self.num_variables, self.num_variables + count).reshape(shape)
+        self.num_variables += count
+        return idx
+
+    def Split(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        return z[self.q], z[self.nu], z[self.u]
+
+
+@dataclass
+class LinearizationPoint:
+    """A point z̄ with everything the groups need, computed once per point."""
+
+    z: np.ndarray
+    q: np.ndarray  # (N+1, n)
+    nu: np.ndarray  # (N+1, m)
+    u: np.ndarray  # (N, m)
+    kin: object  # robot.CalcKinematics(q)
+    # Task targets by task name: (s,) or per step (N+1, s).
+    targets: dict = field(default_factory=dict)
+    # Memo of task evaluations (name → (e, J)), filled lazily.
+    task_cache: dict = field(default_factory=dict)
+
+
+class ConstraintGroup:
+    """lower ≤ g(z) ≤ upper with a fixed Jacobian sparsity pattern.
+
+    Subclasses set ``num_rows``, ``rows`` and ``cols`` (the nonzeros of ∂g/∂z,
+    local row index and global column index) and implement :meth:`Eval`.
+    """
+
+    name = "group"
+    num_rows: int
+    rows: np.ndarray
+    cols: np.ndarray
+
+    def Eval(self, point: LinearizationPoint) -> tuple[np.ndarray, np.ndarray]:
+        """Returns g(z̄) (num_rows,) and the Jacobian nonzeros (nnz,)."""
+        raise NotImplementedError
+
+    def DenseJacobian(self, values: np.ndarray, num_variables: int) -> np.ndarray:
+        J = np.zeros((self.num_rows, num_variables))
+        np.add.at(J, (self.rows, self.cols), values)
+        return J
+
+
+def _BlockPattern(row_blocks, col_blocks):
+    """Pattern of dense blocks: row_blocks[i] × col_blocks[i] (index arrays)."""
+    rows, cols = [], []
+    for r, c in zip(row_blocks, col_blocks):
+        rr, cc = np.meshgrid(r, c, indexing="ij")
+        rows.append(rr.ravel())
+        cols.append(cc.ravel())
+    return np.concatenate(rows), np.concatenate(cols)
+
+
+class DynamicsGroup(ConstraintGroup):
+    """Explicit Euler of q̇ = G(q)ν, ν̇ = u (eq. htmpc_dyn), as = 0 rows:
+
+        q_{k+1} − q_k − Δt G(q_k) ν_k = 0,   ν_{k+1} − ν_k − Δt u_k = 0.
+    """
+
+    name = "dynamics"
+
+    def __init__(self, robot, layout: VariableLayout, time_step: float):
+        self._robot = robot
+        self._layout = layout
+        self._dt = time_step
+        n, m, N = layout.n, layout.m, layout.N
+        self.num_rows = N * (n + m)
+        # Per step k the q rows depend on q_k (all n: identity + the θ column
+        # of ∂(Gν)/∂q, kept dense for a fixed pattern), q_{k+1} (diagonal) and
+        # ν_k (all m); the ν rows on ν_k, ν_{k+1}, u_k (diagonals).
+        row_blocks, col_blocks = [], []
+        self._q_rows = np.arange(N)[:, None] * (n + m) + np.arange(n)[None, :]
+        self._nu_rows = self._q_rows[:, :1] + n + np.arange(m)[None, :]
+        for k in range(N):
+            qr = self._q_rows[k]
+            row_blocks += [qr, qr]
+            col_blocks += [layout.q[k], layout.nu[k]]
+        base_rows, base_cols = _BlockPattern(row_blocks, col_blocks)
+        diag_rows = np.concatenate(
+            [self._q_rows.ravel(), self._nu_rows.ravel(), self._nu_rows.ravel(),
+             self._nu_rows.ravel()]
+        )
+        diag_cols = np.concatenate(
+            [layout.q[1:].ravel(), layout.nu[1:].ravel(), layout.nu[:-1].ravel(),
+             layout.u.ravel()]
+        )
+        self.rows = np.concatenate([base_rows, diag_rows])
+        self.cols = np.concatenate([base_cols, diag_cols])
+
+    def Eval(self, point):
+        robot, dt, N = self._robot, self._dt, self._layout.N
+        n, m = self._layout.n, self._layout.m
+        q, nu, u = point.q, point.nu, point.u
+        G = np.stack([robot.G(q[k]) for k in range(N)])  # (N, n, m)
+        dG = np.stack([robot.dGnu_dq(q[k], nu[k]) for k in range(N)])  # (N, n, n)
+        qdot = np.einsum("knm,km->kn", G, nu[:N])
+        g = np.empty(self.num_rows)
+        g[self._q_rows.ravel()] = (q[1:] - q[:-1] - dt * qdot).ravel()
+        g[self._nu_rows.ravel()] = (nu[1:] - nu[:-1] - dt * u).ravel()
+        dq_k = -np.eye(n)[None] - dt * dG  # (N, n, n)
+        dnu_k = -dt * G  # (N, n, m)
+        blocks = np.concatenate(
+            [dq_k.reshape(N, n * n), dnu_k.reshape(N, n * m)], axis=1
+        ).ravel()
+        diag = np.concatenate(
+            [np.ones(N * n), np.ones(N * m), -np.ones(N * m), -dt * np.ones(N * m)]
+        )
+        return g, np.concatenate([blocks, diag])
+
+
+class TaskErrorGroup(ConstraintGroup):
+    """The errors e_k, k = 1..N, of one task (rows k-major, then component)."""
+
+    def __init__(self, task: Task, layout: VariableLayout):
+        self.task = task
+        self.name = f"task:{task.name}"
+        N, s = layout.N, task.dim
+        self._N = N
+        self.num_rows = N * s
+        row_blocks = [k * s + np.arange(s) for k in range(N)]
+        col_blocks = [layout.q[k + 1] for k in range(N)]
+        self.rows, self.cols = _BlockPattern(row_blocks, col_blocks)
+
+    def ErrorAndJacobian(self, point):
+        cached = point.task_cache.get(self.task.name)
+        if cached is None:
+            target = np.asarray(point.targets[self.task.name], dtype=float)
+            if target.ndim == 2:
+                target = target[1:]
+            cached = self.task.CalcErrorAndJacobian(
+                point.q[1:], _KinSlice(point.kin), target
+            )
+            point.task_cache[self.task.name] = cached
+        return cached
+
+    def Eval(self, point):
+        e, J = self.ErrorAndJacobian(point)
+        return np.asarray(e).ravel(), np.asarray(J).ravel()
+
+
+class _KinSlice:
+    """The kinematics of steps 1..N (tasks skip the fixed step 0)."""
+
+    def __init__(self, kin):
+        self._kin = kin
+
+    def __getattr__(self, name):
+        return getattr(self._kin, name)[1:]
+
+
+class SelfCollisionGroup(ConstraintGroup):
+    """sd(q_k) ≥ d_sc for every self-collision capsule pair, k = 1..N
+    (eq. htmpc_self_collision)."""
+
+    name = "self_collision"
+
+    def __init__(self, robot, layout: VariableLayout):
+        self._robot = robot
+        self._pairs = list(robot.self_collision_pairs)
+        N, P = layout.N, len(self._pairs)
+        self.num_rows = N * P
+        row_blocks = [k * P + np.array([p]) for k in range(N) for p in range(P)]
+        col_blocks = [layout.q[k + 1] for k in range(N) for p in range(P)]
+        if P:
+            self.rows, self.cols = _BlockPattern(row_blocks, col_blocks)
+        else:
+            self.rows = self.cols = np.zeros(0, dtype=int)
+
+    def Eval(self, point):
+        if not self._pairs:
+            return np.zeros(0), np.zeros(0)
+        d, grad = capsule_distance_and_gradient(self._robot, point.kin, self._pairs)
+        return np.asarray(d)[1:].ravel(), np.asarray(grad)[1:].ravel()
+
+
+class MpcProgram:
+    """The groups and bounds shared by every stage of the hierarchy."""
+
+    def __init__(self, *, robot, tasks: list[Task], horizon: int, time_step: float,
+                 self_collision_distance: float, effort_weight_nu: float,
+                 effort_weight_u: float):
+        self.robot = robot
+        self.tasks = list(tasks)
+        self.time_step = time_step
+        self.layout = VariableLayout(
+            num_positions=robot.num_positions,
+            num_velocities=robot.num_velocities,
+            horizon=horizon,
+        )
+        L = self.layout
+        self.dynamics = DynamicsGroup(robot, L, time_step)
+        self.self_collision = SelfCollisionGroup(robot, L)
+        self.self_collision_distance = self_collision_distance
+        self.task_groups = {t.name: TaskErrorGroup(t, L) for t in self.tasks}
+        # Extra groups from predictors / safety constraints (later issues):
+        # list of (group, lower, upper) with mutable bound arrays.
+        self.extra_constraints: list[tuple[ConstraintGroup, np.ndarray, np.ndarray]] = []
+        # Effort J_eff = ½ Σ w_ν‖ν_k‖² (k=1..N) + w_u‖u_k‖² (k=0..N-1).
+        self.effort_diagonal = np.zeros(L.num_variables)
+        self.effort_diagonal[L.nu[1:].ravel()] = effort_weight_nu
+        self.effort_diagonal[L.u.ravel()] = effort_weight_u
+        # Variable bounds (eq. htmpc_limits); q_0, ν_0 pinned each step.
+        lower = np.full(L.num_variables, -np.inf)
+        upper = np.full(L.num_variables, np.inf)
+        lower[L.q] = robot.q_lower
+        upper[L.q] = robot.q_upper
+        lower[L.nu] = robot.nu_lower
+        upper[L.nu] = robot.nu_upper
+        lower[L.u] = robot.nudot_lower
+        upper[L.u] = robot.nudot_upper
+        self.variable_lower = lower
+        self.variable_upper = upper
+
+    def VariableBounds(self, q0: np.ndarray, nu0: np.ndarray):
+        """Variable bounds with the initial condition (eq. htmpc_init) pinned."""
+        L = self.layout
+        lower = self.variable_lower.copy()
+        upper = self.variable_upper.copy()
+        lower[L.q[0]] = upper[L.q[0]] = q0
+        # The measured ν may sit marginally outside its limits; pinning it is
+        # still consistent because only ν_1.. are bounded by the limits.
+        lower[L.nu[0]] = upper[L.nu[0]] = nu0
+        return lower, upper
+
+    def MakePoint(self, z: np.ndarray, targets: dict) -> LinearizationPoint:
+        q, nu, u = self.layout.Split(z)
+        return LinearizationPoint(
+            z=z, q=q, nu=nu, u=u, kin=self.robot.CalcKinematics(q), targets=targets
+        )
+
+    def Rollout(self, q0: np.ndarray, nu0: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """z from integrating the model with inputs u (ν clipped to limits)."""
+        L, dt, robot = self.layout, self.time_step, self.robot
+        z = np.zeros(L.num_variables)
+        q, nu = np.array(q0, dtype=float), np.array(nu0, dtype=float)
+        z[L.q[0]], z[L.nu[0]] = q, nu
+        for k in range(L.N):
+            uk = np.clip(u[k], robot.nudot_lower, robot.nudot_upper)
+            q_next = q + dt * robot.G(q) @ nu
+            nu = np.clip(nu + dt * uk, robot.nu_lower, robot.nu_upper)
+            q = np.clip(q_next, robot.q_lower, robot.q_upper)
+            uk = (nu - z[L.nu[k]]) / dt
+            z[L.u[k]], z[L.q[k + 1]], z[L.nu[k + 1]] = uk, q, nu
+        return z
+
+    def ConstraintGroups(self) -> list[tuple[ConstraintGroup, np.ndarray, np.ndarray]]:
+        """The (group, lower, upper) rows every stage shares."""
+        out = [
+            (self.dynamics, np.zeros(self.dynamics.num_rows),
+             np.zeros(self.dynamics.num_rows)),
+        ]
+        if self.self_collision.num_rows:
+            nr = self.self_collision.num_rows
+            out.append((self.self_collision,
+                        np.full(nr, self.self_collision_distance), np.full(nr, np.inf)))
+        return out + list(self.extra_constraints)

@@ -1,0 +1,178 @@
+"""Task errors e(q) and their Jacobians (Section IV.A).
+
+A task ℓ contributes J_ℓ = ½ Σ_k ‖e_ℓ,k‖²_{W_k} + ‖e_ℓ,N‖²_{W_N} to the cost of
+its own stage and, in every lower stage, the lexicographic constraints
+|e_ℓ,k,p| ≤ |e*_ℓ,k,p| (eq. stmpc_lex_constr). Every task here is a function of
+the configuration q only, evaluated for K configurations at once from the
+precomputed kinematics of the whole horizon.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+
+from sm2ith_drake.scenario import TaskConfig
+
+
+class _Kinematics(Protocol):
+    p_WE: np.ndarray  # (K, 3)
+    J_WE: np.ndarray  # (K, 3, n)
+
+
+def WrapAngle(angle: np.ndarray) -> np.ndarray:
+    """Wraps to [-π, π)."""
+    return (np.asarray(angle) + np.pi) % (2 * np.pi) - np.pi
+
+
+class Task:
+    """Base class: a named error e(q) ∈ R^s with weights.
+
+    Subclasses implement :meth:`CalcErrorAndJacobian`. Custom tasks subclass
+    this (see examples/custom_task.py).
+    """
+
+    def __init__(
+        self,
+        *,
+        name: str,
+        dim: int,
+        target: np.ndarray,
+        weight: np.ndarray | float = 1.0,
+        terminal_weight: float = 5.0,
+        weighted_sum_weight: float = 1.0,
+    ):
+        self.name = name
+        self.dim = dim
+        self.target = np.asarray(target, dtype=float).reshape(-1)
+        if self.target.size != dim:
+            raise ValueError(
+                f"task '{name}' needs a target of size {dim}, got {self.target.size}"
+            )
+        w = np.broadcast_to(np.asarray(weight, dtype=float).reshape(-1), (dim,))
+        self.weight = np.array(w)
+        self.terminal_weight = float(terminal_weight)
+        self.weighted_sum_weight = float(weighted_sum_weight)
+
+    def CalcErrorAndJacobian(
+        self, qs: np.ndarray, kin: _Kinematics, target: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Returns e (K, s) and de/dq (K, s, n) at the configurations qs (K, n)."""
+        raise NotImplementedError
+
+    def StageWeights(self, horizon: int) -> np.ndarray:
+        """Diagonal weights for k = 1..N, shape (N, s); the last row is W_N."""
+        w = np.tile(self.weight, (horizon, 1))
+        w[-1] *= self.terminal_weight
+        return w
+
+
+class EePosition(Task):
+    """e = p_WE(q) − p_target (world frame, 3D)."""
+
+    def __init__(self, **kwargs):
+        super().__init__(dim=3, **kwargs)
+
+    def CalcErrorAndJacobian(self, qs, kin, target):
+        return kin.p_WE - target, kin.J_WE
+
+
+class _Selection(Task):
+    """e = S q − target for a fixed selection of coordinates."""
+
+    def __init__(self, *, indices, angle_components=(), num_positions, **kwargs):
+        super().__init__(dim=len(indices), **kwargs)
+        self._indices = np.asarray(indices)
+        self._angles = list(angle_components)
+        self._S = np.zeros((len(indices), num_positions))
+        self._S[np.arange(len(indices)), self._indices] = 1.0
+
+    def CalcErrorAndJacobian(self, qs, kin, target):
+        e = qs[:, self._indices] - target
+        for p in self._angles:
+            e[:, p] = WrapAngle(e[:, p])
+        return e, np.broadcast_to(self._S, (qs.shape[0],) + self._S.shape)
+
+
+class BasePosition(_Selection):
+    """e = (x, y) − target."""
+
+    def __init__(self, *, num_positions, **kwargs):
+        super().__init__(indices=[0, 1], num_positions=num_positions, **kwargs)
+
+
+class BasePose(_Selection):
+    """e = (x, y, θ) − target, θ wrapped to [−π, π)."""
+
+    def __init__(self, *, num_positions, **kwargs):
+        super().__init__(
+            indices=[0, 1, 2],
+            angle_components=[2],
+            num_positions=num_positions,
+            **kwargs,
+        )
+
+
+class JointPosture(_Selection):
+    """e = q_arm − target (all non-base coordinates)."""
+
+    def __init__(self, *, num_positions, **kwargs):
+        super().__init__(
+            indices=list(range(3, num_positions)),
+            num_positions=num_positions,
+            **kwargs,
+        )
+
+
+class EePositionInBase(Task):
+    """e = R_z(θ)ᵀ (p_WE − (x, y, 0)) − target: the EE held at a point of the
+    base frame (the paper's "arm extended away from the base" task)."""
+
+    def __init__(self, **kwargs):
+        super().__init__(dim=3, **kwargs)
+
+    def CalcErrorAndJacobian(self, qs, kin, target):
+        K = qs.shape[0]
+        c, s = np.cos(qs[:, 2]), np.sin(qs[:, 2])
+        d = kin.p_WE.copy()
+        d[:, 0] -= qs[:, 0]
+        d[:, 1] -= qs[:, 1]
+        # R_z(θ)ᵀ d, written out per configuration.
+        e = np.empty((K, 3))
+        e[:, 0] = c * d[:, 0] + s * d[:, 1]
+        e[:, 1] = -s * d[:, 0] + c * d[:, 1]
+        e[:, 2] = d[:, 2]
+        dd = kin.J_WE.copy()
+        dd[:, 0, 0] -= 1.0
+        dd[:, 1, 1] -= 1.0
+        J = np.empty_like(dd)
+        J[:, 0] = c[:, None] * dd[:, 0] + s[:, None] * dd[:, 1]
+        J[:, 1] = -s[:, None] * dd[:, 0] + c[:, None] * dd[:, 1]
+        J[:, 2] = dd[:, 2]
+        # ∂(R_zᵀ)/∂θ d.
+        J[:, 0, 2] += -s * d[:, 0] + c * d[:, 1]
+        J[:, 1, 2] += -c * d[:, 0] - s * d[:, 1]
+        return e - target, J
+
+
+def MakeTask(config: TaskConfig, num_positions: int) -> Task:
+    """Builds a task from its scenario config."""
+    kwargs = dict(
+        name=config.name or config.kind,
+        target=np.asarray(config.target, dtype=float),
+        weight=np.asarray(config.weight if config.weight else [1.0], dtype=float),
+        terminal_weight=config.terminal_weight,
+        weighted_sum_weight=config.weighted_sum_weight,
+    )
+    if config.kind == "ee_position":
+        return EePosition(**kwargs)
+    if config.kind == "ee_position_in_base":
+        return EePositionInBase(**kwargs)
+    if config.kind == "base_position":
+        return BasePosition(num_positions=num_positions, **kwargs)
+    if config.kind == "base_pose":
+        return BasePose(num_positions=num_positions, **kwargs)
+    if config.kind == "joint_posture":
+        return JointPosture(num_positions=num_positions, **kwargs)
+    raise ValueError(f"unknown task kind '{config.kind}'")

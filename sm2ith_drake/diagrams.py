@@ -1,0 +1,174 @@
+"""Diagram builders: MakeSimulation (and RunSimulation on top of it)."""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+from pathlib import Path
+
+import numpy as np
+from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams, Role
+from pydrake.geometry import SceneGraph
+from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import MatrixGain
+from pydrake.systems.rendering import MultibodyPositionToGeometryPose
+
+from sm2ith_drake.control.tasks import MakeTask
+from sm2ith_drake.robots import MobileManipulator
+from sm2ith_drake.scenario import ControlPeriod, Scenario, ValidateScenario
+from sm2ith_drake.systems.controller import HierarchicalMpc
+from sm2ith_drake.systems.logger import RunLogger
+from sm2ith_drake.systems.planner import TaskPlanner
+from sm2ith_drake.systems.robot import KinematicRobot
+from sm2ith_drake.systems.visualization import PlanVisualizer
+
+
+def MakeRobot(scenario: Scenario) -> MobileManipulator:
+    return MobileManipulator(
+        scenario.robot.model, urdf_path=scenario.robot.urdf_path or None
+    )
+
+
+def MakeSimulation(
+    *, scenario: Scenario, meshcat: Meshcat | None = None, robot=None, tasks=None
+):
+    """Builds the closed-loop simulation Diagram of ``scenario``.
+
+    Args:
+        scenario: the configuration.
+        meshcat: if given, the robot, targets and plans are drawn there.
+        robot: an already-built MobileManipulator (defaults to the scenario's).
+        tasks: Task objects overriding ``scenario.tasks`` (custom tasks).
+
+    Returns:
+        The Diagram, named after the robot, with subsystems ``robot``,
+        ``planner``, ``controller``, ``logger`` (and ``scene_graph`` and the
+        visualizers).
+    """
+    if tasks is None:
+        ValidateScenario(scenario)
+    robot = robot or MakeRobot(scenario)
+    if tasks is None:
+        tasks = [MakeTask(t, robot.num_positions) for t in scenario.tasks]
+    n, m = robot.num_positions, robot.num_velocities
+    q0 = np.asarray(scenario.robot.initial_q or robot.default_q, dtype=float)
+    if q0.size != n:
+        raise ValueError(f"robot.initial_q needs {n} entries, got {q0.size}")
+    nu0 = np.asarray(scenario.robot.initial_nu or np.zeros(m), dtype=float)
+    if nu0.size != m:
+        raise ValueError(f"robot.initial_nu needs {m} entries, got {nu0.size}")
+    period = ControlPeriod(scenario.controller)
+
+    builder = DiagramBuilder()
+    sim_robot = builder.AddNamedSystem(
+        "robot",
+        KinematicRobot(robot, initial_q=q0, initial_nu=nu0,
+                       time_step=scenario.robot_time_step),
+    )
+    planner = builder.AddNamedSystem("planner", TaskPlanner(tasks, num_states=n + m))
+    controller = builder.AddNamedSystem(
+        "controller", HierarchicalMpc(robot, tasks, scenario.controller)
+    )
+    logger = builder.AddNamedSystem("logger", RunLogger(robot, tasks, period=period))
+    builder.Connect(sim_robot.GetOutputPort("state"), planner.GetInputPort("robot_state"))
+    builder.Connect(sim_robot.GetOutputPort("state"),
+                    controller.GetInputPort("robot_state"))
+    builder.Connect(planner.GetOutputPort("task_references"),
+                    controller.GetInputPort("task_references"))
+    builder.Connect(controller.GetOutputPort("command"),
+                    sim_robot.GetInputPort("command"))
+    builder.Connect(sim_robot.GetOutputPort("state"), logger.GetInputPort("robot_state"))
+    builder.Connect(planner.GetOutputPort("task_references"),
+                    logger.GetInputPort("task_references"))
+    builder.Connect(controller.GetOutputPort("controller_state"),
+                    logger.GetInputPort("controller_state"))
+
+    # Geometry: a plant used only for its geometry, posed from q.
+    scene_graph = builder.AddNamedSystem("scene_graph", SceneGraph())
+    plant = robot.AddToSceneGraph(scene_graph)
+    select_q = np.hstack([np.eye(n), np.zeros((n, m))])
+    q_of_state = builder.AddNamedSystem("robot.q", MatrixGain(select_q))
+    to_pose = builder.AddNamedSystem(
+        "robot.geometry_pose", MultibodyPositionToGeometryPose(plant)
+    )
+    builder.Connect(sim_robot.GetOutputPort("state"), q_of_state.get_input_port())
+    builder.Connect(q_of_state.get_output_port(), to_pose.get_input_port())
+    builder.Connect(to_pose.get_output_port(),
+                    scene_graph.get_source_pose_port(plant.get_source_id()))
+
+    if meshcat is not None:
+        params = MeshcatVisualizerParams(
+            role=Role.kIllustration,
+            publish_period=scenario.visualization.publish_period,
+        )
+        MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat, params)
+        if scenario.visualization.draw_plans:
+            vis = builder.AddNamedSystem(
+                "plan_visualizer",
+                PlanVisualizer(meshcat, tasks, horizon=scenario.controller.horizon,
+                               period=period),
+            )
+            builder.Connect(controller.GetOutputPort("plan"), vis.GetInputPort("plan"))
+            builder.Connect(planner.GetOutputPort("task_references"),
+                            vis.GetInputPort("task_references"))
+    diagram = builder.Build()
+    diagram.set_name(f"sm2ith_{robot.name}")
+    return diagram
+
+
+@dataclasses.dataclass
+class RunResult:
+    log: object
+    metrics: dict
+    diagram: object
+    html_path: str | None = None
+
+
+def RunSimulation(
+    scenario: Scenario,
+    *,
+    meshcat: Meshcat | None = None,
+    duration: float | None = None,
+    html_path: str | None = None,
+    robot=None,
+    tasks=None,
+    progress: bool = False,
+) -> RunResult:
+    """Builds and simulates ``scenario``; returns the log and its metrics.
+
+    If ``html_path`` is given (and ``meshcat``), the run is recorded and saved
+    as a self-contained HTML replay.
+    """
+    from sm2ith_drake.experiments.metrics import SummarizeRun
+
+    diagram = MakeSimulation(scenario=scenario, meshcat=meshcat, robot=robot,
+                             tasks=tasks)
+    simulator = Simulator(diagram)
+    ApplySimulatorConfig(scenario.simulator_config, simulator)
+    if meshcat is not None and html_path:
+        meshcat.StartRecording(set_visualizations_while_recording=True)
+    end = scenario.simulation_duration if duration is None else duration
+    simulator.Initialize()
+    if progress:
+        steps = max(1, int(np.ceil(end)))
+        for i in range(1, steps + 1):
+            simulator.AdvanceTo(min(end, end * i / steps))
+            print(f"\r  simulated {simulator.get_context().get_time():6.1f} / "
+                  f"{end:.1f} s", end="", file=sys.stderr, flush=True)
+        print(file=sys.stderr)
+    else:
+        simulator.AdvanceTo(end)
+    context = simulator.get_context()
+    logger = diagram.GetSubsystemByName("logger")
+    log = logger.GetLog(logger.GetMyContextFromRoot(context))
+    controller = diagram.GetSubsystemByName("controller")
+    saved = None
+    if meshcat is not None and html_path:
+        meshcat.StopRecording()
+        meshcat.PublishRecording()
+        Path(html_path).parent.mkdir(parents=True, exist_ok=True)
+        Path(html_path).write_text(meshcat.StaticHtml())
+        saved = str(html_path)
+    metrics = SummarizeRun(log, controller.controller.robot)
+    return RunResult(log=log, metrics=metrics, diagram=diagram, html_path=saved)

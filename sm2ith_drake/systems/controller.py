@@ -1,0 +1,87 @@
+"""HierarchicalMpc: the controller LeafSystem over control.controller."""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import LeafSystem
+
+from sm2ith_drake.control.controller import ControllerState, MpcController
+from sm2ith_drake.scenario import ControllerConfig
+from sm2ith_drake.systems.planner import TaskReferences
+
+
+class HierarchicalMpc(LeafSystem):
+    """Runs the hierarchical MPC at the control rate.
+
+    The solve happens in a periodic unrestricted update and its outcome (plan,
+    command, counters, timing) is held in abstract state; outputs only read
+    that state.
+
+    .. pydrake_system::
+
+        name: HierarchicalMpc
+        input_ports:
+        - robot_state
+        - task_references
+        output_ports:
+        - command
+        - plan
+        - controller_state
+
+    ``robot_state`` is [q; ν]; ``command`` is [u = ν̇; ν_cmd]; ``plan`` is the
+    latest MpcSolution (or None); ``controller_state`` the whole
+    ControllerState (counters and the last StepRecord).
+    """
+
+    def __init__(self, robot, tasks, config: ControllerConfig):
+        super().__init__()
+        self.controller = MpcController(robot, tasks, config)
+        self._n, self._m = robot.num_positions, robot.num_velocities
+        self._robot_state = self.DeclareVectorInputPort(
+            "robot_state", self._n + self._m
+        )
+        self._references = self.DeclareAbstractInputPort(
+            "task_references", AbstractValue.Make(TaskReferences())
+        )
+        self._state = self.DeclareAbstractState(
+            AbstractValue.Make(self.controller.InitialState())
+        )
+        self.DeclarePeriodicUnrestrictedUpdateEvent(
+            self.controller.period, 0.0, self._Update
+        )
+        self.DeclareVectorOutputPort("command", 2 * self._m, self._CalcCommand)
+        self.DeclareAbstractOutputPort(
+            "plan", lambda: AbstractValue.Make(None), self._CalcPlan
+        )
+        self.DeclareAbstractOutputPort(
+            "controller_state",
+            lambda: AbstractValue.Make(ControllerState()),
+            self._CalcControllerState,
+        )
+
+    def _Update(self, context, state):
+        x = self._robot_state.Eval(context)
+        refs = self._references.Eval(context)
+        old = context.get_abstract_state(self._state).get_value()
+        new = self.controller.Step(
+            old,
+            time_now=context.get_time(),
+            q0=x[: self._n],
+            nu0=x[self._n :],
+            targets=refs.targets,
+        )
+        state.get_mutable_abstract_state(self._state).set_value(new)
+
+    def _Get(self, context) -> ControllerState:
+        return context.get_abstract_state(self._state).get_value()
+
+    def _CalcCommand(self, context, output):
+        s = self._Get(context)
+        output.SetFromVector(np.concatenate([s.command_u, s.command_nu]))
+
+    def _CalcPlan(self, context, output):
+        output.set_value(self._Get(context).last_solution)
+
+    def _CalcControllerState(self, context, output):
+        output.set_value(self._Get(context))

@@ -1,0 +1,86 @@
+"""RunLogger: records a run at the control rate for metrics and replays."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import LeafSystem
+
+from sm2ith_drake.control.controller import ControllerState
+from sm2ith_drake.systems.planner import TaskReferences
+
+
+@dataclass
+class RunLog:
+    """Samples at the control rate (lists of equal length)."""
+
+    times: list = field(default_factory=list)
+    states: list = field(default_factory=list)  # [q; ν]
+    p_WE: list = field(default_factory=list)
+    # Task errors at the actual state, by task name.
+    task_errors: dict = field(default_factory=dict)
+    records: list = field(default_factory=list)  # StepRecord per control step
+    # Per control step, the per-stage errors of the solved plan (by stage
+    # index then task name), to check the lexicographic invariant.
+    stage_errors: list = field(default_factory=list)
+    counters: object = None
+
+
+class RunLogger(LeafSystem):
+    """Logs the robot and controller at the control rate.
+
+    .. pydrake_system::
+
+        name: RunLogger
+        input_ports:
+        - robot_state
+        - task_references
+        - controller_state
+
+    The log lives in the Context (see :meth:`GetLog`).
+    """
+
+    def __init__(self, robot, tasks, *, period: float):
+        super().__init__()
+        self._robot = robot
+        self._tasks = list(tasks)
+        n, m = robot.num_positions, robot.num_velocities
+        self._n = n
+        self._x = self.DeclareVectorInputPort("robot_state", n + m)
+        self._refs = self.DeclareAbstractInputPort(
+            "task_references", AbstractValue.Make(TaskReferences())
+        )
+        self._ctrl = self.DeclareAbstractInputPort(
+            "controller_state", AbstractValue.Make(ControllerState())
+        )
+        self._log = self.DeclareAbstractState(AbstractValue.Make(RunLog()))
+        self.DeclarePeriodicPublishEvent(period, 0.0, self._Record)
+
+    def GetLog(self, context) -> RunLog:
+        return context.get_abstract_state(self._log).get_value()
+
+    def _Record(self, context):
+        log = self.GetLog(context)
+        x = np.array(self._x.Eval(context))
+        q = x[: self._n]
+        kin = self._robot.CalcKinematics(q[None, :])
+        refs = self._refs.Eval(context)
+        ctrl = self._ctrl.Eval(context)
+        log.times.append(context.get_time())
+        log.states.append(x)
+        log.p_WE.append(np.asarray(kin.p_WE)[0])
+        for task in self._tasks:
+            target = np.asarray(refs.targets.get(task.name, task.target))
+            if target.ndim == 2:
+                target = target[0]
+            e, _ = task.CalcErrorAndJacobian(q[None, :], kin, target)
+            log.task_errors.setdefault(task.name, []).append(np.asarray(e)[0])
+        log.records.append(ctrl.record)
+        sol = ctrl.last_solution
+        if sol is not None and ctrl.record.mode == "solved":
+            log.stage_errors.append([dict(s.errors) for s in sol.stages])
+        else:
+            log.stage_errors.append(None)
+        log.counters = ctrl.counters

@@ -1,0 +1,83 @@
+"""PlanVisualizer: draws targets and the planned base (orange) and EE (blue)
+paths in Meshcat, also into a Meshcat recording for the HTML replay."""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.geometry import Cylinder, Rgba, Sphere
+from pydrake.math import RigidTransform
+from pydrake.systems.framework import LeafSystem
+
+from sm2ith_drake.systems.planner import TaskReferences
+
+ORANGE = Rgba(1.0, 0.55, 0.0, 1.0)
+BLUE = Rgba(0.1, 0.35, 1.0, 1.0)
+TARGET = Rgba(1.0, 0.85, 0.0, 0.9)
+
+
+class PlanVisualizer(LeafSystem):
+    """Shows the controller's plan and the task targets.
+
+    .. pydrake_system::
+
+        name: PlanVisualizer
+        input_ports:
+        - plan
+        - task_references
+
+    The plans are drawn as chains of small spheres whose poses are updated
+    (so they animate in a Meshcat recording, unlike line geometry).
+    """
+
+    def __init__(self, meshcat, tasks, *, horizon: int, period: float,
+                 prefix: str = "sm2ith"):
+        super().__init__()
+        self._meshcat = meshcat
+        self._tasks = list(tasks)
+        self._N = horizon
+        self._prefix = prefix
+        self._plan = self.DeclareAbstractInputPort("plan", AbstractValue.Make(None))
+        self._refs = self.DeclareAbstractInputPort(
+            "task_references", AbstractValue.Make(TaskReferences())
+        )
+        for k in range(horizon + 1):
+            meshcat.SetObject(self._Path("base_plan", k), Sphere(0.03), ORANGE)
+            meshcat.SetObject(self._Path("ee_plan", k), Sphere(0.025), BLUE)
+        for task in self._tasks:
+            name = type(task).__name__
+            if name == "EePosition":
+                meshcat.SetObject(self._Path("targets", task.name), Sphere(0.06), TARGET)
+            elif name in ("BasePosition", "BasePose"):
+                meshcat.SetObject(self._Path("targets", task.name),
+                                  Cylinder(0.15, 0.01), TARGET)
+        self.DeclarePeriodicPublishEvent(period, 0.0, self._Draw)
+        self.DeclareForcedPublishEvent(self._Draw)
+
+    def _Path(self, group, k):
+        return f"/{self._prefix}/{group}/{k}"
+
+    def _Draw(self, context):
+        t = context.get_time()
+        meshcat = self._meshcat
+        refs = self._refs.Eval(context)
+        for task in self._tasks:
+            target = np.asarray(refs.targets.get(task.name, []), dtype=float)
+            if target.ndim == 2:
+                target = target[0]
+            name = type(task).__name__
+            if name == "EePosition":
+                meshcat.SetTransform(self._Path("targets", task.name),
+                                     RigidTransform(target), t)
+            elif name in ("BasePosition", "BasePose"):
+                meshcat.SetTransform(self._Path("targets", task.name),
+                                     RigidTransform([target[0], target[1], 0.005]), t)
+        plan = self._plan.Eval(context)
+        if plan is None:
+            return
+        for k in range(min(self._N + 1, len(plan.q))):
+            x, y = plan.q[k, 0], plan.q[k, 1]
+            meshcat.SetTransform(self._Path("base_plan", k),
+                                 RigidTransform([x, y, 0.03]), t)
+            meshcat.SetTransform(self._Path("ee_plan", k),
+                                 RigidTransform(plan.p_WE[k]), t)

@@ -1,0 +1,146 @@
+"""The hierarchical MPC: strict priority, the lexicographic invariant, the
+weighted-sum baseline, fallbacks, and the RTI against the full NLP."""
+
+import numpy as np
+import pytest
+
+from sm2ith_drake.control.controller import MpcController
+from sm2ith_drake.diagrams import RunSimulation
+from sm2ith_drake.resources import GetDiagramsDir
+from sm2ith_drake.scenario import LoadScenario
+
+CONFLICT = GetDiagramsDir() / "conflict.scenarios.yaml"
+REACH = GetDiagramsDir() / "reach.scenarios.yaml"
+DURATION = 8.0
+
+
+def _run(name, text="{}", filename=CONFLICT, duration=DURATION):
+    scenario = LoadScenario(filename=filename, scenario_name=name, scenario_text=text)
+    return scenario, RunSimulation(scenario, duration=duration)
+
+
+def _final_error(result, task):
+    return float(np.linalg.norm(result.log.task_errors[task][-1]))
+
+
+@pytest.fixture(scope="module")
+def conflict_runs():
+    runs = {}
+    for name in ["conflict_ee_over_base", "conflict_base_over_ee",
+                 "conflict_weighted_sum"]:
+        runs[name] = _run(name)[1]
+    # Single-task optima: each task alone.
+    runs["ee_only"] = _run("conflict_ee_over_base",
+                           "{tasks: [{kind: ee_position, target: [1.2, 0.0, 0.9]}]}")[1]
+    runs["base_only"] = _run("conflict_ee_over_base",
+                             "{tasks: [{kind: base_position, target: [4.0, 0.0]}]}")[1]
+    return runs
+
+
+def test_strict_priority_on_conflict(conflict_runs):
+    r = conflict_runs
+    ee_opt = _final_error(r["ee_only"], "ee_position")
+    base_opt = _final_error(r["base_only"], "base_position")
+    # Each task alone is (almost) achievable.
+    assert ee_opt < 0.02 and base_opt < 0.05
+    # EE ≥ base: the EE stays at its single-task optimum, the base yields.
+    ee_first = r["conflict_ee_over_base"]
+    assert _final_error(ee_first, "ee_position") <= ee_opt + 0.01
+    assert _final_error(ee_first, "base_position") > 1.0
+    # base ≥ EE: the reverse.
+    base_first = r["conflict_base_over_ee"]
+    assert _final_error(base_first, "base_position") <= base_opt + 0.01
+    assert _final_error(base_first, "ee_position") > 1.0
+
+
+def test_weighted_sum_trades_off(conflict_runs):
+    r = conflict_runs
+    ws = r["conflict_weighted_sum"]
+    ee_ws = _final_error(ws, "ee_position")
+    base_ws = _final_error(ws, "base_position")
+    assert ee_ws > _final_error(r["conflict_ee_over_base"], "ee_position") + 0.1
+    assert base_ws > _final_error(r["conflict_base_over_ee"], "base_position") + 0.1
+    # ...and neither task is simply dropped.
+    assert ee_ws < _final_error(r["conflict_base_over_ee"], "ee_position") - 0.1
+    assert base_ws < _final_error(r["conflict_ee_over_base"], "base_position") - 0.1
+
+
+def _check_lexicographic_invariant(log, tasks, tol):
+    checked = 0
+    for stages in log.stage_errors:
+        if stages is None:
+            continue
+        for ell in range(1, len(stages)):
+            for i in range(ell):
+                name = tasks[i]
+                e_star = np.abs(stages[i][name])
+                e_ell = np.abs(stages[ell][name])
+                # Solver accuracy (OSQP eps 1e-5) on top of the tolerance.
+                assert np.all(e_ell <= e_star + tol + 1e-4), (ell, name)
+                checked += 1
+    return checked
+
+
+def test_lexicographic_invariant_every_step(conflict_runs):
+    scenario = LoadScenario(filename=CONFLICT, scenario_name="conflict_ee_over_base")
+    tol = scenario.controller.lexicographic_tolerance
+    for name in ["conflict_ee_over_base", "conflict_base_over_ee"]:
+        log = conflict_runs[name].log
+        tasks = list(log.task_errors)
+        assert _check_lexicographic_invariant(log, tasks, tol) >= 30
+
+
+def test_lexicographic_invariant_five_levels():
+    scenario, result = _run("everything", duration=3.0)
+    tasks = [t.name or t.kind for t in scenario.tasks]
+    assert _check_lexicographic_invariant(
+        result.log, tasks, scenario.controller.lexicographic_tolerance) >= 10
+
+
+def test_limits_never_exceeded(conflict_runs):
+    for result in conflict_runs.values():
+        assert result.metrics["limit_violations"] == 0
+        assert result.metrics["solver_failures"] == 0
+
+
+@pytest.mark.parametrize("max_iter", [1, 0])
+def test_forced_solver_failure_brakes(max_iter):
+    # A robot already moving, with a solver that cannot succeed.
+    text = ("{controller: {solver_options: {options: {OSQP: {max_iter: %d}}}}, "
+            "robot: {initial_nu: [0.5, 0.0, 0.0, 0, 0, 0, 0, 0, 0]}}" % max_iter)
+    scenario, result = _run("conflict_ee_over_base", text, duration=2.0)
+    c = result.log.counters
+    assert c.steps >= 10
+    assert c.solver_failures == c.steps
+    assert c.fallbacks == c.steps and c.braking_fallbacks == c.steps
+    modes = {r.mode for r in result.log.records}
+    assert modes == {"brake"}
+    # The robot brakes to a stop within its deceleration limit.
+    final_nu = result.log.states[-1][9:]
+    assert np.allclose(final_nu, 0.0, atol=1e-9)
+
+
+def test_rti_converges_to_the_nlp_solution():
+    """Many RTI iterations on one stage reach the SNOPT solution of the same
+    nonlinear program (the validation path)."""
+    scenario = LoadScenario(filename=REACH, scenario_name="ridgeback_ur10_reach",
+                            scenario_text="{tasks: [{kind: ee_position, "
+                                          "target: [1.0, 0.5, 0.8]}]}")
+    from sm2ith_drake.diagrams import MakeRobot
+
+    robot = MakeRobot(scenario)
+    q0 = robot.default_q.copy()
+    nu0 = np.zeros(robot.num_velocities)
+    targets = {"ee_position": np.array([1.0, 0.5, 0.8])}
+    plans = {}
+    for solver, iters in [("rti", 15), ("snopt", 1)]:
+        scenario.controller.solver = solver
+        scenario.controller.rti_iterations = iters
+        controller = MpcController(robot, scenario.tasks, scenario.controller)
+        state = controller.InitialState()
+        z0 = controller.WarmStart(state, q0, nu0)
+        sol = controller.solver.Solve(q0=q0, nu0=nu0, targets=targets, z_guess=z0)
+        assert sol.success, sol.status
+        plans[solver] = sol
+    # Same EE path within a few millimetres.
+    assert np.max(np.abs(plans["rti"].p_WE - plans["snopt"].p_WE)) < 5e-3

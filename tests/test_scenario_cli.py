@@ -1,0 +1,78 @@
+"""Scenario loading and the CLI's handling of bad input."""
+
+import subprocess
+import sys
+
+import pytest
+
+from sm2ith_drake.resources import GetDiagramsDir
+from sm2ith_drake.scenario import LoadScenario, ScenarioError, ScenarioNames
+
+CONFLICT = str(GetDiagramsDir() / "conflict.scenarios.yaml")
+
+
+def test_every_shipped_scenario_loads():
+    files = sorted(GetDiagramsDir().glob("*.scenarios.yaml"))
+    assert len(files) >= 3
+    for path in files:
+        names = ScenarioNames(path)
+        assert names, path
+        for name in names:
+            scenario = LoadScenario(filename=path, scenario_name=name)
+            assert scenario.tasks
+
+
+def test_unknown_key_is_named():
+    with pytest.raises(ScenarioError, match="controler"):
+        LoadScenario(filename=CONFLICT, scenario_name="minimal",
+                     scenario_text="{controler: {horizon: 3}}")
+
+
+def test_override_changes_one_field():
+    base = LoadScenario(filename=CONFLICT, scenario_name="conflict_ee_over_base")
+    changed = LoadScenario(filename=CONFLICT, scenario_name="conflict_ee_over_base",
+                           scenario_text="{controller: {horizon: 7}}")
+    assert base.controller.horizon == 10
+    assert changed.controller.horizon == 7
+    assert changed.controller.time_step == base.controller.time_step
+    assert [t.target for t in changed.tasks] == [t.target for t in base.tasks]
+
+
+def test_bad_values_rejected():
+    with pytest.raises(ScenarioError, match="method"):
+        LoadScenario(filename=CONFLICT, scenario_name="minimal",
+                     scenario_text="{controller: {method: best}}")
+    with pytest.raises(ScenarioError, match="task kind"):
+        LoadScenario(filename=CONFLICT, scenario_name="minimal",
+                     scenario_text="{tasks: [{kind: dance}]}")
+
+
+def _cli(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "sm2ith_drake.cli", *args],
+                          capture_output=True, text=True, cwd=cwd, timeout=120)
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["run", "no_such_file.scenarios.yaml", "--scenario", "x"], "not found"),
+        (["run", CONFLICT, "--scenario", "nope"], "valid names: conflict_ee_over_base"),
+        (["run", CONFLICT, "--scenario", "minimal", "--scenario_text", "{a: [}"],
+         "minimal"),
+    ],
+)
+def test_cli_user_errors_are_one_line(args, message, tmp_path):
+    result = _cli(*args, "--no-meshcat", cwd=tmp_path)
+    assert result.returncode == 2
+    assert "Traceback" not in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+    assert message in result.stderr
+
+
+def test_cli_malformed_yaml_file(tmp_path):
+    bad = tmp_path / "bad.scenarios.yaml"
+    bad.write_text("a: [1, 2\nb: {")
+    result = _cli("run", str(bad), "--scenario", "a", "--no-meshcat", cwd=tmp_path)
+    assert result.returncode == 2
+    assert "malformed YAML" in result.stderr
+    assert "Traceback" not in result.stderr
