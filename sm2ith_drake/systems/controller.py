@@ -3,12 +3,22 @@
 from __future__ import annotations
 
 import numpy as np
+from dataclasses import dataclass
+
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
 
 from sm2ith_drake.control.controller import ControllerState, MpcController
 from sm2ith_drake.scenario import ControllerConfig
 from sm2ith_drake.systems.planner import TaskReferences
+
+
+@dataclass
+class PlanMessage:
+    """The ``plan`` output: the latest MpcSolution, or None before the first
+    successful solve."""
+
+    solution: object = None
 
 
 class HierarchicalMpc(LeafSystem):
@@ -29,8 +39,8 @@ class HierarchicalMpc(LeafSystem):
         - plan
         - controller_state
 
-    ``robot_state`` is [q; ν]; ``command`` is [u = ν̇; ν_cmd]; ``plan`` is the
-    latest MpcSolution (or None); ``controller_state`` the whole
+    ``robot_state`` is [q; ν]; ``command`` is [u = ν̇; ν_cmd]; ``plan`` is a
+    PlanMessage; ``controller_state`` the whole
     ControllerState (counters and the last StepRecord).
     """
 
@@ -52,7 +62,7 @@ class HierarchicalMpc(LeafSystem):
         )
         self.DeclareVectorOutputPort("command", 2 * self._m, self._CalcCommand)
         self.DeclareAbstractOutputPort(
-            "plan", lambda: AbstractValue.Make(None), self._CalcPlan
+            "plan", lambda: AbstractValue.Make(PlanMessage()), self._CalcPlan
         )
         self.DeclareAbstractOutputPort(
             "controller_state",
@@ -81,7 +91,7 @@ class HierarchicalMpc(LeafSystem):
         output.SetFromVector(np.concatenate([s.command_u, s.command_nu]))
 
     def _CalcPlan(self, context, output):
-        output.set_value(self._Get(context).last_solution)
+        output.set_value(PlanMessage(self._Get(context).last_solution))
 
     def _CalcControllerState(self, context, output):
         output.set_value(self._Get(context))

@@ -9,6 +9,7 @@ from pydrake.geometry import Cylinder, Rgba, Sphere
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import LeafSystem
 
+from sm2ith_drake.systems.controller import PlanMessage
 from sm2ith_drake.systems.planner import TaskReferences
 
 ORANGE = Rgba(1.0, 0.55, 0.0, 1.0)
@@ -37,7 +38,7 @@ class PlanVisualizer(LeafSystem):
         self._tasks = list(tasks)
         self._N = horizon
         self._prefix = prefix
-        self._plan = self.DeclareAbstractInputPort("plan", AbstractValue.Make(None))
+        self._plan = self.DeclareAbstractInputPort("plan", AbstractValue.Make(PlanMessage()))
         self._refs = self.DeclareAbstractInputPort(
             "task_references", AbstractValue.Make(TaskReferences())
         )
@@ -72,7 +73,7 @@ class PlanVisualizer(LeafSystem):
             elif name in ("BasePosition", "BasePose"):
                 meshcat.SetTransform(self._Path("targets", task.name),
                                      RigidTransform([target[0], target[1], 0.005]), t)
-        plan = self._plan.Eval(context)
+        plan = self._plan.Eval(context).solution
         if plan is None:
             return
         for k in range(min(self._N + 1, len(plan.q))):

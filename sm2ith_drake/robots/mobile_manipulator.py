@@ -1,0 +1,421 @@
+"""MobileManipulator: a URDF arm on a planar base, with fast kinematics.
+
+Configuration q = (x, y, θ, q_arm) ∈ Rⁿ and pseudo-velocities
+ν = (ν_base, q̇_arm) ∈ Rᵐ with q̇ = G(q) ν (Section III of the paper):
+
+- holonomic base: ν_base = (v_x, v_y, ω) in the base frame, m = n;
+- differential base: ν_base = (v, ω) along the base x axis, m = n − 1, so
+  the base can never move sideways.
+
+Kinematics for the MPC. The controller evaluates the end-effector position,
+every capsule endpoint and their Jacobians at all N + 1 knots of the horizon
+many times per control step. MultibodyPlant does this one configuration at a
+time (about 20 µs per call and frame from Python, times N·frames·stages);
+instead the kinematic tree is read once from the finalized plant (fixed
+joint offsets, axes, types) and evaluated here for all knots at once with
+vectorized numpy, with analytic geometric Jacobians. The tests hold both
+against MultibodyPlant and the UR10 against its closed-form DH model.
+"""
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from pydrake.geometry import SceneGraph
+from pydrake.multibody.parsing import Parser
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import (
+    PlanarJoint,
+    PrismaticJoint,
+    RevoluteJoint,
+    WeldJoint,
+)
+
+from sm2ith_drake.resources import GetModelsDir
+from sm2ith_drake.robots.models import BASE_KINDS, MODELS, RobotModel
+
+_WELD, _REVOLUTE, _PRISMATIC, _PLANAR = range(4)
+
+
+@dataclass
+class Kinematics:
+    """Kinematics at K configurations (arrays lead with K)."""
+
+    # End-effector position in the world and its Jacobian w.r.t. q.
+    p_WE: np.ndarray  # (K, 3)
+    J_WE: np.ndarray  # (K, 3, n)
+    # Base origin (on the floor) in the world.
+    p_WB: np.ndarray  # (K, 3)
+    # Capsule segment endpoints in the world and their Jacobians w.r.t. q.
+    capsule_points: np.ndarray  # (K, C, 2, 3)
+    capsule_jacobians: np.ndarray  # (K, C, 2, 3, n)
+
+
+@dataclass
+class _BodyStep:
+    """How one body is posed from its parent (one joint of the tree)."""
+
+    body: int  # index into the pose arrays
+    parent: int  # -1 for the world
+    kind: int
+    R_PF: np.ndarray
+    p_PF: np.ndarray
+    R_MC: np.ndarray
+    p_MC: np.ndarray
+    axis_F: np.ndarray
+    dofs: tuple  # our q indices moved by this joint
+
+
+def _Skew(a):
+    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+
+
+class MobileManipulator:
+    """A mobile manipulator built from a URDF plus a :class:`RobotModel`.
+
+    Args:
+        model: a shipped model name ("ridgeback_ur10", "stretch3") or a
+            RobotModel describing your own robot.
+        urdf_path: a URDF replacing the model's (same link and joint names).
+
+    The URDF must have a root link ``base_link``; the planar base joint is
+    added here as a Drake ``PlanarJoint``. Every movable joint of the URDF
+    must be listed in ``model.arm_joints`` and carry position, velocity and
+    acceleration (``drake:acceleration``) limits.
+    """
+
+    def __init__(self, model="ridgeback_ur10", *, urdf_path: str | None = None):
+        if isinstance(model, str):
+            if model not in MODELS:
+                raise ValueError(
+                    f"unknown robot model '{model}'; known: {sorted(MODELS)}"
+                )
+            model = MODELS[model]
+        if model.base_kind not in BASE_KINDS:
+            raise ValueError(
+                f"base_kind must be one of {BASE_KINDS}, got '{model.base_kind}'"
+            )
+        self.model = model
+        self.name = model.name
+        self.base_kind = model.base_kind
+        path = Path(urdf_path or model.urdf)
+        if not path.is_absolute() and not path.exists():
+            path = GetModelsDir() / path
+        if not path.exists():
+            raise FileNotFoundError(f"robot URDF not found: {path}")
+        self.urdf_path = str(path)
+        self.plant = self._MakePlant(None)
+        self._ReadTree()
+        self._ReadLimits()
+        self.default_q = np.concatenate(
+            [np.zeros(3), np.asarray(model.default_arm_q, dtype=float)]
+        )
+        if self.default_q.size != self.num_positions:
+            raise ValueError(
+                f"default_arm_q needs {self.num_positions - 3} entries, "
+                f"got {len(model.default_arm_q)}"
+            )
+        self._ReadCapsules()
+
+    # ------------------------------------------------------------------ setup
+
+    def _MakePlant(self, scene_graph):
+        plant = MultibodyPlant(0.0)
+        if scene_graph is not None:
+            plant.RegisterAsSourceForSceneGraph(scene_graph)
+        Parser(plant).AddModels(self.urdf_path)
+        if not plant.HasBodyNamed("base_link"):
+            raise ValueError(f"{self.urdf_path} has no link named 'base_link'")
+        base = plant.GetBodyByName("base_link")
+        plant.AddJoint(
+            PlanarJoint("base", plant.world_frame(), base.body_frame(), np.zeros(3))
+        )
+        plant.Finalize()
+        return plant
+
+    def AddToSceneGraph(self, scene_graph: SceneGraph) -> MultibodyPlant:
+        """A new finalized plant of this robot registered with ``scene_graph``
+        (for drawing; pose it with :meth:`PlantPositions`)."""
+        return self._MakePlant(scene_graph)
+
+    def _ReadTree(self):
+        plant, model = self.plant, self.model
+        self.position_names = ["base_x", "base_y", "base_theta"] + list(
+            model.arm_joints
+        )
+        self.num_positions = len(self.position_names)
+        if model.base_kind == "holonomic":
+            base_v = ["base_vx", "base_vy", "base_omega"]
+        else:
+            base_v = ["base_v", "base_omega"]
+        self.velocity_names = base_v + [f"{j}dot" for j in model.arm_joints]
+        self.num_velocities = len(self.velocity_names)
+        if plant.num_positions() != self.num_positions:
+            movable = [
+                plant.get_joint(i).name()
+                for i in plant.GetJointIndices()
+                if plant.get_joint(i).num_positions() > 0
+            ]
+            raise ValueError(
+                f"the URDF's movable joints {movable} do not match arm_joints "
+                f"{list(model.arm_joints)} (plus the planar base)"
+            )
+        # Our q order vs. the plant's.
+        self.plant_from_q = np.zeros((self.num_positions, self.num_positions))
+        base_joint = plant.GetJointByName("base")
+        for i in range(3):
+            self.plant_from_q[base_joint.position_start() + i, i] = 1.0
+        for k, name in enumerate(model.arm_joints):
+            if not plant.HasJointNamed(name):
+                raise ValueError(f"joint '{name}' is not in {self.urdf_path}")
+            self.plant_from_q[plant.GetJointByName(name).position_start(), 3 + k] = 1.0
+
+        # Bodies in topological order (parents before children).
+        joint_of_child = {}
+        for i in plant.GetJointIndices():
+            joint = plant.get_joint(i)
+            joint_of_child[int(joint.child_body().index())] = joint
+        world = int(plant.world_body().index())
+        order, frontier = [], [world]
+        children = {}
+        for child, joint in joint_of_child.items():
+            children.setdefault(int(joint.parent_body().index()), []).append(child)
+        while frontier:
+            b = frontier.pop(0)
+            for c in sorted(children.get(b, [])):
+                order.append(c)
+                frontier.append(c)
+        self._slot = {b: s for s, b in enumerate(order)}
+        self._num_bodies = len(order)
+        dof_of_joint = {name: 3 + k for k, name in enumerate(model.arm_joints)}
+        self._steps = []
+        for b in order:
+            joint = joint_of_child[b]
+            X_PF = joint.frame_on_parent().GetFixedPoseInBodyFrame()
+            X_CM = joint.frame_on_child().GetFixedPoseInBodyFrame()
+            X_MC = X_CM.inverse()
+            if isinstance(joint, WeldJoint):
+                kind, axis, dofs = _WELD, np.zeros(3), ()
+                X_PF = X_PF.multiply(joint.X_FM())
+            elif isinstance(joint, RevoluteJoint):
+                kind, axis = _REVOLUTE, np.asarray(joint.revolute_axis())
+                dofs = (dof_of_joint[joint.name()],)
+            elif isinstance(joint, PrismaticJoint):
+                kind, axis = _PRISMATIC, np.asarray(joint.translation_axis())
+                dofs = (dof_of_joint[joint.name()],)
+            elif isinstance(joint, PlanarJoint):
+                kind, axis, dofs = _PLANAR, np.array([0.0, 0.0, 1.0]), (0, 1, 2)
+            else:
+                raise ValueError(
+                    f"joint '{joint.name()}' of type {joint.type_name()} is not "
+                    "supported (use revolute, prismatic or fixed joints)"
+                )
+            parent = int(joint.parent_body().index())
+            self._steps.append(
+                _BodyStep(
+                    body=self._slot[b],
+                    parent=-1 if parent == world else self._slot[parent],
+                    kind=kind,
+                    R_PF=X_PF.rotation().matrix(),
+                    p_PF=X_PF.translation().copy(),
+                    R_MC=X_MC.rotation().matrix(),
+                    p_MC=X_MC.translation().copy(),
+                    axis_F=axis,
+                    dofs=dofs,
+                )
+            )
+        # Which of our dofs move each body (its ancestors' joints).
+        n = self.num_positions
+        self._ancestors = np.zeros((self._num_bodies, n), dtype=bool)
+        for step in self._steps:
+            if step.parent >= 0:
+                self._ancestors[step.body] = self._ancestors[step.parent]
+            self._ancestors[step.body, list(step.dofs)] = True
+        self._revolute_dof = np.zeros(n, dtype=bool)
+        for step in self._steps:
+            if step.kind == _REVOLUTE:
+                self._revolute_dof[step.dofs[0]] = True
+        self._revolute_dof[2] = True  # the base heading
+        ee = self.model.ee_frame
+        if not plant.HasFrameNamed(ee):
+            raise ValueError(f"end-effector frame '{ee}' is not in {self.urdf_path}")
+        frame = plant.GetFrameByName(ee)
+        self._ee_slot = self._slot[int(frame.body().index())]
+        self._p_BE = frame.GetFixedPoseInBodyFrame().translation().copy()
+        self._base_slot = self._slot[int(plant.GetBodyByName("base_link").index())]
+
+    def _ReadLimits(self):
+        plant, model = self.plant, self.model
+        lower, upper, v_max, a_max = [], [], [], []
+        for name in model.arm_joints:
+            j = plant.GetJointByName(name)
+            lower.append(j.position_lower_limits()[0])
+            upper.append(j.position_upper_limits()[0])
+            v_max.append(j.velocity_upper_limits()[0])
+            a_max.append(j.acceleration_upper_limits()[0])
+            for what, value in (("velocity", v_max[-1]), ("acceleration", a_max[-1])):
+                if not np.isfinite(value) or value <= 0:
+                    raise ValueError(
+                        f"joint '{name}' needs a finite {what} limit in the URDF "
+                        "(<limit velocity=... drake:acceleration=...>)"
+                    )
+        nb = 3 if model.base_kind == "holonomic" else 2
+        bv = np.asarray(model.base_velocity_limit, dtype=float)
+        ba = np.asarray(model.base_acceleration_limit, dtype=float)
+        if bv.size != nb or ba.size != nb:
+            raise ValueError(
+                f"a {model.base_kind} base needs {nb} velocity and acceleration "
+                "limits"
+            )
+        inf3 = np.full(3, np.inf)
+        self.q_lower = np.concatenate([-inf3, lower])
+        self.q_upper = np.concatenate([inf3, upper])
+        self.nu_upper = np.concatenate([bv, v_max])
+        self.nu_lower = -self.nu_upper
+        self.nudot_upper = np.concatenate([ba, a_max])
+        self.nudot_lower = -self.nudot_upper
+
+    def _ReadCapsules(self):
+        plant = self.plant
+        self.capsules = list(self.model.capsules)
+        self.capsule_names = [c.name for c in self.capsules]
+        index = {name: i for i, name in enumerate(self.capsule_names)}
+        if len(index) != len(self.capsules):
+            raise ValueError("capsule names must be unique")
+        slots, local = [], []
+        for c in self.capsules:
+            if not plant.HasBodyNamed(c.body):
+                raise ValueError(f"capsule '{c.name}': no link '{c.body}'")
+            slots.append(self._slot[int(plant.GetBodyByName(c.body).index())])
+            local.append([c.p_A, c.p_B])
+        self._capsule_slots = np.array(slots, dtype=int)
+        self._capsule_local = np.asarray(local, dtype=float).reshape(-1, 2, 3)
+        self.capsule_radii = np.array([c.radius for c in self.capsules])
+        pairs = []
+        for a, b in self.model.self_collision_pairs:
+            if a not in index or b not in index:
+                raise ValueError(f"self-collision pair ({a}, {b}): unknown capsule")
+            pairs.append((index[a], index[b]))
+        self.self_collision_pairs = pairs
+
+    # ------------------------------------------------------------- the model
+
+    def PlantPositions(self, q: np.ndarray) -> np.ndarray:
+        """The plant's generalized positions for our q."""
+        return self.plant_from_q @ q
+
+    def G(self, q: np.ndarray) -> np.ndarray:
+        """q̇ = G(q) ν, an (n, m) matrix."""
+        n, m = self.num_positions, self.num_velocities
+        c, s = np.cos(q[2]), np.sin(q[2])
+        G = np.zeros((n, m))
+        if self.base_kind == "holonomic":
+            G[:3, :3] = [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]
+            G[3:, 3:] = np.eye(n - 3)
+        else:
+            G[:3, :2] = [[c, 0.0], [s, 0.0], [0.0, 1.0]]
+            G[3:, 2:] = np.eye(n - 3)
+        return G
+
+    def dGnu_dq(self, q: np.ndarray, nu: np.ndarray) -> np.ndarray:
+        """∂(G(q) ν)/∂q, an (n, n) matrix (only the θ column is nonzero)."""
+        n = self.num_positions
+        c, s = np.cos(q[2]), np.sin(q[2])
+        out = np.zeros((n, n))
+        if self.base_kind == "holonomic":
+            vx, vy = nu[0], nu[1]
+            out[0, 2] = -s * vx - c * vy
+            out[1, 2] = c * vx - s * vy
+        else:
+            out[0, 2] = -s * nu[0]
+            out[1, 2] = c * nu[0]
+        return out
+
+    def CalcKinematics(self, qs: np.ndarray) -> Kinematics:
+        """End-effector and capsule kinematics at the K rows of ``qs``."""
+        qs = np.atleast_2d(np.asarray(qs, dtype=float))
+        K, n = qs.shape
+        if n != self.num_positions:
+            raise ValueError(f"q needs {self.num_positions} entries, got {n}")
+        R = np.empty((self._num_bodies, K, 3, 3))
+        p = np.empty((self._num_bodies, K, 3))
+        axes = np.zeros((K, n, 3))  # world axis of each dof
+        origins = np.zeros((K, n, 3))  # a point on each revolute axis
+        eye = np.broadcast_to(np.eye(3), (K, 3, 3))
+        for st in self._steps:
+            if st.parent < 0:
+                R_WF = np.broadcast_to(st.R_PF, (K, 3, 3))
+                p_WF = np.broadcast_to(st.p_PF, (K, 3))
+            else:
+                R_WP, p_WP = R[st.parent], p[st.parent]
+                R_WF = R_WP @ st.R_PF
+                p_WF = p_WP + R_WP @ st.p_PF
+            if st.kind == _WELD:
+                R_WM, p_WM = R_WF, p_WF
+            elif st.kind == _REVOLUTE:
+                theta = qs[:, st.dofs[0]]
+                A = _Skew(st.axis_F)
+                s, c = np.sin(theta)[:, None, None], np.cos(theta)[:, None, None]
+                R_FM = eye + s * A + (1.0 - c) * (A @ A)
+                R_WM, p_WM = R_WF @ R_FM, p_WF
+                axes[:, st.dofs[0]] = R_WF @ st.axis_F
+                origins[:, st.dofs[0]] = p_WF
+            elif st.kind == _PRISMATIC:
+                axis_W = R_WF @ st.axis_F
+                R_WM = R_WF
+                p_WM = p_WF + axis_W * qs[:, st.dofs[0], None]
+                axes[:, st.dofs[0]] = axis_W
+            else:  # planar base, F = world frame
+                theta = qs[:, 2]
+                c, s = np.cos(theta), np.sin(theta)
+                R_FM = np.zeros((K, 3, 3))
+                R_FM[:, 0, 0], R_FM[:, 0, 1] = c, -s
+                R_FM[:, 1, 0], R_FM[:, 1, 1] = s, c
+                R_FM[:, 2, 2] = 1.0
+                p_FM = np.zeros((K, 3))
+                p_FM[:, 0], p_FM[:, 1] = qs[:, 0], qs[:, 1]
+                R_WM = R_WF @ R_FM
+                p_WM = p_WF + np.einsum("kij,kj->ki", R_WF, p_FM)
+                axes[:, 0] = R_WF[:, :, 0]
+                axes[:, 1] = R_WF[:, :, 1]
+                axes[:, 2] = R_WF[:, :, 2]
+                origins[:, 2] = p_WM
+            R[st.body] = R_WM @ st.R_MC
+            p[st.body] = p_WM + R_WM @ st.p_MC
+
+        # Points: the end effector, then both ends of every capsule.
+        slots = np.concatenate([[self._ee_slot], np.repeat(self._capsule_slots, 2)])
+        local = np.concatenate([self._p_BE[None], self._capsule_local.reshape(-1, 3)])
+        points = p[slots].transpose(1, 0, 2) + np.einsum(
+            "bkij,bj->kbi", R[slots], local
+        )  # (K, P, 3)
+        jac = self._PointJacobians(points, axes, origins, self._ancestors[slots])
+        C = len(self.capsules)
+        return Kinematics(
+            p_WE=points[:, 0],
+            J_WE=jac[:, 0],
+            p_WB=p[self._base_slot].copy(),
+            capsule_points=points[:, 1:].reshape(K, C, 2, 3),
+            capsule_jacobians=jac[:, 1:].reshape(K, C, 2, 3, n),
+        )
+
+    def _PointJacobians(self, points, axes, origins, masks):
+        """(K, P, 3, n) translational Jacobians of world points fixed to bodies
+        whose ancestor dofs are ``masks`` (P, n)."""
+        lever = points[:, :, None, :] - origins[:, None, :, :]  # (K, P, n, 3)
+        cols = np.where(
+            self._revolute_dof[None, None, :, None],
+            np.cross(axes[:, None, :, :], lever),
+            axes[:, None, :, :],
+        )
+        cols = cols * masks[None, :, :, None]
+        return cols.transpose(0, 1, 3, 2)
+
+    def CalcEePosition(self, q: np.ndarray) -> np.ndarray:
+        return self.CalcKinematics(q).p_WE[0]
+
+    def __repr__(self):
+        return (
+            f"MobileManipulator('{self.name}', {self.base_kind}, "
+            f"n={self.num_positions}, m={self.num_velocities})"
+        )
