@@ -74,14 +74,20 @@ class ControllerConfig:
     time_step: float = 0.2
     # How often a new command is computed (s); 0 means time_step.
     control_period: float = 0.0
-    # "rti": real-time iteration, sparse QPs in a persistent OSQP workspace;
+    # "rti": real-time iteration, sparse QPs in a persistent PIQP workspace;
     # "snopt" | "ipopt": the full nonlinear program through
     # MathematicalProgram (validation path).
     solver: str = "rti"
-    # Drake SolverOptions; the entry "OSQP" configures the rti QPs.
+    # Drake SolverOptions; the entry "PIQP" configures the rti QPs (any PIQP
+    # setting, e.g. {PIQP: {max_iter: 50}}); "SNOPT" / "Ipopt" the NLPs.
     solver_options: SolverOptions = field(default_factory=SolverOptions)
     # Sequential QP iterations per stage and control step (rti only).
     rti_iterations: int = 1
+    # Damping ½ρ‖z − z̄‖² toward the linearization point (the shifted previous
+    # plan) in every RTI QP, as in Levenberg–Marquardt: it keeps single QP
+    # steps where the linearization holds (near arm singularities, at the
+    # reach limit) and vanishes at a converged plan (rti only).
+    rti_proximal_weight: float = 1.0
     # Slack added to |e*| in the lexicographic constraints (eq. stmpc_lex_constr).
     lexicographic_tolerance: float = 1e-3
     # J_eff = ½ Σ w_ν‖ν_k‖² + w_u‖u_k‖².
@@ -182,8 +188,20 @@ def ValidateScenario(scenario: Scenario) -> None:
         raise ScenarioError(f"controller.solver must be rti|snopt|ipopt: {c.solver}")
     if c.horizon < 1 or c.time_step <= 0:
         raise ScenarioError("controller.horizon must be ≥ 1 and time_step > 0")
+    if c.rti_iterations < 1 or c.rti_proximal_weight < 0:
+        raise ScenarioError("controller.rti_iterations must be ≥ 1 and "
+                            "rti_proximal_weight ≥ 0")
+    if c.lexicographic_tolerance < 0 or c.self_collision_distance < 0:
+        raise ScenarioError("controller.lexicographic_tolerance and "
+                            "self_collision_distance must be ≥ 0")
+    if c.control_period < 0 or c.time_budget < 0 or c.max_fallback_steps < 0:
+        raise ScenarioError("controller.control_period, time_budget and "
+                            "max_fallback_steps must be ≥ 0")
     if not scenario.tasks:
         raise ScenarioError("a scenario needs at least one task")
+    names = [t.name or t.kind for t in scenario.tasks]
+    if len(set(names)) != len(names):
+        raise ScenarioError(f"task names must be unique (set name:): {names}")
     for task in scenario.tasks:
         if task.kind not in TASK_KINDS:
             raise ScenarioError(

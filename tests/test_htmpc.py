@@ -75,7 +75,7 @@ def _check_lexicographic_invariant(log, tasks, tol):
                 name = tasks[i]
                 e_star = np.abs(stages[i][name])
                 e_ell = np.abs(stages[ell][name])
-                # Solver accuracy (OSQP eps 1e-5) on top of the tolerance.
+                # Solver accuracy (PIQP eps 1e-7) on top of the tolerance.
                 assert np.all(e_ell <= e_star + tol + 1e-4), (ell, name)
                 checked += 1
     return checked
@@ -106,7 +106,7 @@ def test_limits_never_exceeded(conflict_runs):
 @pytest.mark.parametrize("max_iter", [1, 0])
 def test_forced_solver_failure_brakes(max_iter):
     # A robot already moving, with a solver that cannot succeed.
-    text = ("{controller: {solver_options: {options: {OSQP: {max_iter: %d}}}}, "
+    text = ("{controller: {solver_options: {options: {PIQP: {max_iter: %d}}}}, "
             "robot: {initial_nu: [0.5, 0.0, 0.0, 0, 0, 0, 0, 0, 0]}}" % max_iter)
     scenario, result = _run("conflict_ee_over_base", text, duration=2.0)
     c = result.log.counters

@@ -99,6 +99,7 @@ class MpcController:
             solver_options=config.solver_options,
             lexicographic_tolerance=config.lexicographic_tolerance,
             rti_iterations=config.rti_iterations,
+            rti_proximal_weight=config.rti_proximal_weight,
         )
         self.period = ControlPeriod(config)
         self.shift = max(1, int(round(self.period / config.time_step)))

@@ -4,7 +4,7 @@ The program is described once, as groups of vector-valued functions with a
 fixed sparsity pattern: each group evaluates its values g(z̄) and the nonzeros
 of ∂g/∂z at a point z̄. Two solvers consume that description
 (:mod:`sm2ith_drake.control.htmpc`): the real-time iteration, which linearizes
-every group at the warm start and solves sparse QPs in a persistent OSQP
+every group at the warm start and solves sparse QPs in a persistent PIQP
 workspace, and the nonlinear path, which hands the same functions with their
 analytic Jacobians to SNOPT or IPOPT through a MathematicalProgram.
 
@@ -22,6 +22,12 @@ import numpy as np
 
 from sm2ith_drake.control.tasks import Task
 from sm2ith_drake.geometry import capsule_distance_and_gradient
+
+
+# Exact-penalty weights of constraint slacks (large against task costs of
+# order 1 per metre of error).
+SLACK_LINEAR_WEIGHT = 1e3
+SLACK_QUADRATIC_WEIGHT = 1e4
 
 
 class VariableLayout:
@@ -95,9 +101,15 @@ def _BlockPattern(row_blocks, col_blocks):
 
 
 class DynamicsGroup(ConstraintGroup):
-    """Explicit Euler of q̇ = G(q)ν, ν̇ = u (eq. htmpc_dyn), as = 0 rows:
+    """Discretized q̇ = G(q)ν, ν̇ = u (eq. htmpc_dyn), as = 0 rows:
 
-        q_{k+1} − q_k − Δt G(q_k) ν_k = 0,   ν_{k+1} − ν_k − Δt u_k = 0.
+        ν_{k+1} − ν_k − Δt u_k = 0,
+        q_{k+1} − q_k − Δt G(q_k) (ν_k + ν_{k+1}) / 2 = 0.
+
+    With u constant over a step this is the exact motion of the joints (and
+    of the base up to the heading change within the step), so the plan
+    matches what the robot does; and q_1 depends on u_0, so a joint moving
+    toward its limit can still be stopped by the first input.
     """
 
     name = "dynamics"
@@ -109,15 +121,15 @@ class DynamicsGroup(ConstraintGroup):
         n, m, N = layout.n, layout.m, layout.N
         self.num_rows = N * (n + m)
         # Per step k the q rows depend on q_k (all n: identity + the θ column
-        # of ∂(Gν)/∂q, kept dense for a fixed pattern), q_{k+1} (diagonal) and
-        # ν_k (all m); the ν rows on ν_k, ν_{k+1}, u_k (diagonals).
+        # of ∂(Gν)/∂q, kept dense for a fixed pattern), q_{k+1} (diagonal),
+        # ν_k and ν_{k+1} (all m each); the ν rows on ν_k, ν_{k+1}, u_k.
         row_blocks, col_blocks = [], []
         self._q_rows = np.arange(N)[:, None] * (n + m) + np.arange(n)[None, :]
         self._nu_rows = self._q_rows[:, :1] + n + np.arange(m)[None, :]
         for k in range(N):
             qr = self._q_rows[k]
             row_blocks += [qr, qr]
-            col_blocks += [layout.q[k], layout.nu[k]]
+            col_blocks += [layout.q[k], np.concatenate([layout.nu[k], layout.nu[k + 1]])]
         base_rows, base_cols = _BlockPattern(row_blocks, col_blocks)
         diag_rows = np.concatenate(
             [self._q_rows.ravel(), self._nu_rows.ravel(), self._nu_rows.ravel(),
@@ -135,15 +147,17 @@ class DynamicsGroup(ConstraintGroup):
         n, m = self._layout.n, self._layout.m
         q, nu, u = point.q, point.nu, point.u
         G = np.stack([robot.G(q[k]) for k in range(N)])  # (N, n, m)
-        dG = np.stack([robot.dGnu_dq(q[k], nu[k]) for k in range(N)])  # (N, n, n)
-        qdot = np.einsum("knm,km->kn", G, nu[:N])
+        nu_mid = 0.5 * (nu[:-1] + nu[1:])
+        dG = np.stack([robot.dGnu_dq(q[k], nu_mid[k]) for k in range(N)])  # (N, n, n)
+        qdot = np.einsum("knm,km->kn", G, nu_mid)
         g = np.empty(self.num_rows)
         g[self._q_rows.ravel()] = (q[1:] - q[:-1] - dt * qdot).ravel()
         g[self._nu_rows.ravel()] = (nu[1:] - nu[:-1] - dt * u).ravel()
         dq_k = -np.eye(n)[None] - dt * dG  # (N, n, n)
-        dnu_k = -dt * G  # (N, n, m)
+        half = -0.5 * dt * G  # (N, n, m), the same for ν_k and ν_{k+1}
+        dnu = np.concatenate([half, half], axis=2)  # (N, n, 2m)
         blocks = np.concatenate(
-            [dq_k.reshape(N, n * n), dnu_k.reshape(N, n * m)], axis=1
+            [dq_k.reshape(N, n * n), dnu.reshape(N, 2 * n * m)], axis=1
         ).ravel()
         diag = np.concatenate(
             [np.ones(N * n), np.ones(N * m), -np.ones(N * m), -dt * np.ones(N * m)]
@@ -192,8 +206,15 @@ class _KinSlice:
 
 
 class SelfCollisionGroup(ConstraintGroup):
-    """sd(q_k) ≥ d_sc for every self-collision capsule pair, k = 1..N
-    (eq. htmpc_self_collision)."""
+    """sd(q_k) + σ_k ≥ d_sc for every self-collision capsule pair, k = 1..N
+    (eq. htmpc_self_collision), with slacks σ ≥ 0 under an exact (L1 plus
+    quadratic) penalty.
+
+    The slacks are zero whenever the hard constraint can be met; they keep
+    the program feasible when the measured state is already inside the
+    margin (a linearization error, a disturbance), so the controller steers
+    back out instead of failing.
+    """
 
     name = "self_collision"
 
@@ -202,8 +223,12 @@ class SelfCollisionGroup(ConstraintGroup):
         self._pairs = list(robot.self_collision_pairs)
         N, P = layout.N, len(self._pairs)
         self.num_rows = N * P
+        self.slack = layout.AddVariables("self_collision_slack", (N, P))
         row_blocks = [k * P + np.array([p]) for k in range(N) for p in range(P)]
-        col_blocks = [layout.q[k + 1] for k in range(N) for p in range(P)]
+        col_blocks = [
+            np.concatenate([layout.q[k + 1], [self.slack[k, p]]])
+            for k in range(N) for p in range(P)
+        ]
         if P:
             self.rows, self.cols = _BlockPattern(row_blocks, col_blocks)
         else:
@@ -213,7 +238,9 @@ class SelfCollisionGroup(ConstraintGroup):
         if not self._pairs:
             return np.zeros(0), np.zeros(0)
         d, grad = capsule_distance_and_gradient(self._robot, point.kin, self._pairs)
-        return np.asarray(d)[1:].ravel(), np.asarray(grad)[1:].ravel()
+        d, grad = np.asarray(d)[1:], np.asarray(grad)[1:]  # (N, P), (N, P, n)
+        jac = np.concatenate([grad, np.ones(grad.shape[:2] + (1,))], axis=2)
+        return (d + point.z[self.slack]).ravel(), jac.ravel()
 
 
 class MpcProgram:
@@ -242,6 +269,10 @@ class MpcProgram:
         self.effort_diagonal = np.zeros(L.num_variables)
         self.effort_diagonal[L.nu[1:].ravel()] = effort_weight_nu
         self.effort_diagonal[L.u.ravel()] = effort_weight_u
+        # Penalty on the self-collision slacks: ½ w_q σ² + w_l σ.
+        self.linear_cost = np.zeros(L.num_variables)
+        self.effort_diagonal[self.self_collision.slack.ravel()] = SLACK_QUADRATIC_WEIGHT
+        self.linear_cost[self.self_collision.slack.ravel()] = SLACK_LINEAR_WEIGHT
         # Variable bounds (eq. htmpc_limits); q_0, ν_0 pinned each step.
         lower = np.full(L.num_variables, -np.inf)
         upper = np.full(L.num_variables, np.inf)
@@ -251,6 +282,7 @@ class MpcProgram:
         upper[L.nu] = robot.nu_upper
         lower[L.u] = robot.nudot_lower
         upper[L.u] = robot.nudot_upper
+        lower[self.self_collision.slack.ravel()] = 0.0
         self.variable_lower = lower
         self.variable_upper = upper
 
@@ -279,9 +311,10 @@ class MpcProgram:
         z[L.q[0]], z[L.nu[0]] = q, nu
         for k in range(L.N):
             uk = np.clip(u[k], robot.nudot_lower, robot.nudot_upper)
-            q_next = q + dt * robot.G(q) @ nu
-            nu = np.clip(nu + dt * uk, robot.nu_lower, robot.nu_upper)
-            q = np.clip(q_next, robot.q_lower, robot.q_upper)
+            nu_next = np.clip(nu + dt * uk, robot.nu_lower, robot.nu_upper)
+            q = np.clip(q + 0.5 * dt * robot.G(q) @ (nu + nu_next), robot.q_lower,
+                        robot.q_upper)
+            nu = nu_next
             uk = (nu - z[L.nu[k]]) / dt
             z[L.u[k]], z[L.q[k + 1]], z[L.nu[k + 1]] = uk, q, nu
         return z
