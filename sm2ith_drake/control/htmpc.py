@@ -391,52 +391,54 @@ class HierarchicalSolver:
                              for s in self.stages]
 
     def Solve(self, *, q0, nu0, targets: dict, z_guess: np.ndarray) -> MpcSolution:
-        """Runs every stage in priority order from the initial guess."""
+        """Runs every stage in priority order from the initial guess.
+
+        RTI: each of the ``rti_iterations`` passes linearizes once, at the
+        previous pass's result, and solves the whole hierarchy on that one
+        linearization, so every stage is feasible given the stage above it.
+        A pass after the first that fails keeps the previous pass's plan.
+        """
         start = time.perf_counter()
         program = self.program
         lower, upper = program.VariableBounds(q0, nu0)
-        point = program.MakePoint(z_guess, targets)
-        linearizations: dict = {}
-        lex_bounds: dict = {}
-        results: list[StageResult] = []
-        success, status = True, "solved"
+        passes = self.rti_iterations if self.solver_name == "rti" else 1
         z = z_guess
-        for stage, solver in zip(self.stages, self._solvers):
-            iterations = self.rti_iterations if self.solver_name == "rti" else 1
-            result = None
-            for it in range(iterations):
-                if it > 0 or (self.rti_iterations > 1 and results):
-                    point = program.MakePoint(z, targets)
-                    linearizations = {}
-                attempt = solver.Solve(point, lower=lower, upper=upper,
-                                       lex_bounds=lex_bounds,
-                                       linearizations=linearizations)
-                if not attempt.success and result is not None:
-                    # A later SQP iteration may linearize where the
-                    # lexicographic bounds cannot be met; the previous
-                    # iterate is feasible and is kept.
-                    break
-                result = attempt
-                if not result.success:
-                    break
-                z = result.z
-            results.append(result)
-            if not result.success:
-                success, status = False, f"stage '{stage.name}': {result.status}"
+        results: list[StageResult] = []
+        success, status, iterations = True, "solved", 0
+        for it in range(passes):
+            point = program.MakePoint(z, targets)
+            z_pass, ok, why, pass_results = self._SolveHierarchy(
+                point, lower, upper)
+            iterations += sum(r.iterations for r in pass_results)
+            if not ok:
+                if it == 0:
+                    success, status, results = False, why, pass_results
                 break
-            for task, _ in stage.cost_tasks:
-                e_star = result.errors[task.name]
-                if self.solver_name == "rti" and self.rti_iterations > 1:
-                    # Nonlinear errors at the converged stage solution.
-                    final = program.MakePoint(z, targets)
-                    e_star = program.task_groups[task.name].Eval(final)[0].reshape(
-                        e_star.shape)
-                lex_bounds[task.name] = np.abs(e_star).ravel() + self.tolerance
+            z, results = z_pass, pass_results
         q, nu, u = program.layout.Split(z)
         kin = program.robot.CalcKinematics(q)
         return MpcSolution(
             z=z, q=q, nu=nu, u=u, p_WE=np.asarray(kin.p_WE),
             success=success, status=status, stages=results,
             solve_time=time.perf_counter() - start,
-            iterations=int(sum(r.iterations for r in results if r is not None)),
+            iterations=int(iterations),
         )
+
+    def _SolveHierarchy(self, point, lower, upper):
+        """One pass of every stage at one linearization point."""
+        linearizations: dict = {}
+        lex_bounds: dict = {}
+        results: list[StageResult] = []
+        z = point.z
+        for stage, solver in zip(self.stages, self._solvers):
+            result = solver.Solve(point, lower=lower, upper=upper,
+                                  lex_bounds=lex_bounds,
+                                  linearizations=linearizations)
+            results.append(result)
+            if not result.success:
+                return z, False, f"stage '{stage.name}': {result.status}", results
+            z = result.z
+            for task, _ in stage.cost_tasks:
+                lex_bounds[task.name] = (np.abs(result.errors[task.name]).ravel()
+                                         + self.tolerance)
+        return z, True, "solved", results
