@@ -1,7 +1,8 @@
 """Locates the data shipped with the package (robot models, scenario files).
 
 ``models/`` and ``diagrams/`` sit at the top of a checkout and are installed as
-the data packages ``sm2ith_drake.models`` and ``sm2ith_drake.diagrams``, so the
+the data packages ``sm2ith_drake.model_files`` and
+``sm2ith_drake.scenario_files``, so the
 same lookup works from an editable install, a wheel, or a plain checkout.
 """
 
@@ -25,12 +26,12 @@ def _data_dir(package: str, checkout_name: str) -> Path:
 
 def GetModelsDir() -> Path:
     """The directory holding the robot URDFs and their ``package.xml``."""
-    return _data_dir("sm2ith_drake.models", "models")
+    return _data_dir("sm2ith_drake.model_files", "models")
 
 
 def GetDiagramsDir() -> Path:
     """The directory holding the shipped ``*.scenarios.yaml`` files."""
-    return _data_dir("sm2ith_drake.diagrams", "diagrams")
+    return _data_dir("sm2ith_drake.scenario_files", "diagrams")
 
 
 def ResolveScenarioFile(filename: str) -> Path:

@@ -133,7 +133,10 @@ def test_rti_converges_to_the_nlp_solution():
     nu0 = np.zeros(robot.num_velocities)
     targets = {"ee_position": np.array([1.0, 0.5, 0.8])}
     plans = {}
-    for solver, iters in [("rti", 15), ("snopt", 1)]:
+    # The proximal damping does not move the fixed point of the iteration,
+    # only how fast it is reached; a light one converges in few iterations.
+    scenario.controller.rti_proximal_weight = 1e-3
+    for solver, iters in [("rti", 30), ("snopt", 1)]:
         scenario.controller.solver = solver
         scenario.controller.rti_iterations = iters
         controller = MpcController(robot, scenario.tasks, scenario.controller)
@@ -142,5 +145,6 @@ def test_rti_converges_to_the_nlp_solution():
         sol = controller.solver.Solve(q0=q0, nu0=nu0, targets=targets, z_guess=z0)
         assert sol.success, sol.status
         plans[solver] = sol
-    # Same EE path within a few millimetres.
-    assert np.max(np.abs(plans["rti"].p_WE - plans["snopt"].p_WE)) < 5e-3
+    # The same plan (measured: 8e-7 m apart).
+    assert np.max(np.abs(plans["rti"].p_WE - plans["snopt"].p_WE)) < 1e-4
+    assert np.max(np.abs(plans["rti"].z - plans["snopt"].z)) < 1e-3

@@ -77,10 +77,12 @@ class RunLogger(LeafSystem):
                 target = target[0]
             e, _ = task.CalcErrorAndJacobian(q[None, :], kin, target)
             log.task_errors.setdefault(task.name, []).append(np.asarray(e)[0])
+        log.counters = ctrl.counters
+        if ctrl.counters.steps == len(log.records):
+            return  # no control step since the last sample (the initial one)
         log.records.append(ctrl.record)
         sol = ctrl.last_solution
         if sol is not None and ctrl.record.mode == "solved":
             log.stage_errors.append([dict(s.errors) for s in sol.stages])
         else:
             log.stage_errors.append(None)
-        log.counters = ctrl.counters
