@@ -94,7 +94,8 @@ def RunBenchmark(*, robot: str, humans: int = 0, predictor: str = "orca_kkt",
     from sm2ith_drake.scenario import ControlPeriod
 
     scenario = BenchmarkScenario(robot, humans, predictor, solver)
-    duration = (steps - 0.5) * ControlPeriod(scenario.controller)
+    # The logger sees step k at the sample after it: run just past step K.
+    duration = (steps + 0.5) * ControlPeriod(scenario.controller)
     result = RunSimulation(scenario, duration=duration)
     records = [r for r in result.log.records if r.mode != "none"]
     wall = np.array([r.wall_time for r in records]) * 1e3

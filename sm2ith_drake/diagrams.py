@@ -14,7 +14,7 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import MatrixGain
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 
-from sm2ith_drake.control.tasks import MakeTask
+from sm2ith_drake.control.tasks import BasePose, BasePosition, EePosition, MakeTask
 from sm2ith_drake.robots import MobileManipulator
 from sm2ith_drake.scenario import ControlPeriod, Scenario, ValidateScenario
 from sm2ith_drake.systems.controller import HierarchicalMpc
@@ -98,6 +98,7 @@ def MakeSimulation(
                     scene_graph.get_source_pose_port(plant.get_source_id()))
 
     if meshcat is not None:
+        _FrameScene(meshcat, q0, tasks)
         params = MeshcatVisualizerParams(
             role=Role.kIllustration,
             publish_period=scenario.visualization.publish_period,
@@ -115,6 +116,23 @@ def MakeSimulation(
     diagram = builder.Build()
     diagram.set_name(f"sm2ith_{robot.name}")
     return diagram
+
+
+def _FrameScene(meshcat: Meshcat, q0, tasks) -> None:
+    """Points the camera at the start and the task targets, from above and
+    behind the start, so a replay opens on the action."""
+    points = [np.array([q0[0], q0[1]])]
+    for task in tasks:
+        if isinstance(task, (EePosition, BasePosition, BasePose)):
+            points.append(np.asarray(task.target[:2], dtype=float))
+    points = np.array(points)
+    center = points.mean(axis=0)
+    extent = max(2.0, float(np.max(np.linalg.norm(points - center, axis=1))))
+    meshcat.SetCameraPose(
+        camera_in_world=[center[0] - 1.2 * extent, center[1] - 1.6 * extent,
+                         1.4 * extent],
+        target_in_world=[center[0], center[1], 0.5],
+    )
 
 
 @dataclasses.dataclass
