@@ -51,15 +51,35 @@ def _Run(args) -> int:
             html = str(Path("out") / f"{args.scenario}.html")
     elif html:
         raise UserError("--html needs Meshcat; drop --no-meshcat")
+    rate = args.realtime_rate
+    if rate is None:
+        rate = 1.0 if meshcat is not None else 0.0
+    if rate < 0 or (args.duration is not None and args.duration <= 0):
+        raise UserError("--realtime_rate must be ≥ 0 and --duration > 0")
     result = RunSimulation(
-        scenario, meshcat=meshcat, duration=args.duration, html_path=html,
+        scenario,
+        meshcat=meshcat,
+        duration=args.duration,
+        html_path=html,
         progress=sys.stderr.isatty(),
+        realtime_rate=rate,
     )
-    print(f"scenario {args.scenario} ({scenario.robot.model}, "
-          f"{scenario.controller.method}/{scenario.controller.solver}):")
+    print(
+        f"scenario {args.scenario} ({scenario.robot.model}, "
+        f"{scenario.controller.method}/{scenario.controller.solver}):"
+    )
     print(FormatMetrics(result.metrics))
     if result.html_path:
-        print(f"replay saved to {result.html_path}")
+        print(f"replay saved to {result.html_path} (open it in any browser)")
+    if args.wait and meshcat is not None:
+        print(
+            f"Meshcat still at {meshcat.web_url()} (the recording plays there); "
+            "press Enter or Ctrl-C to quit"
+        )
+        try:
+            input()
+        except (EOFError, KeyboardInterrupt):
+            pass
     return 0
 
 
@@ -83,12 +103,19 @@ def BenchmarkScenario(robot: str, humans: int, predictor: str, solver: str = "rt
     if humans:
         raise UserError("--humans > 0 needs the human predictors (not available yet)")
     text = f"{{controller: {{solver: {solver}}}}}"
-    return _Load(str(GetDiagramsDir() / "benchmark.scenarios.yaml"),
-                 f"bench_{robot}", text)
+    return _Load(
+        str(GetDiagramsDir() / "benchmark.scenarios.yaml"), f"bench_{robot}", text
+    )
 
 
-def RunBenchmark(*, robot: str, humans: int = 0, predictor: str = "orca_kkt",
-                 steps: int = 100, solver: str = "rti") -> dict:
+def RunBenchmark(
+    *,
+    robot: str,
+    humans: int = 0,
+    predictor: str = "orca_kkt",
+    steps: int = 100,
+    solver: str = "rti",
+) -> dict:
     """Runs the benchmark closed loop; returns the per-step timing figures."""
     from sm2ith_drake.diagrams import RunSimulation
     from sm2ith_drake.scenario import ControlPeriod
@@ -110,7 +137,8 @@ def RunBenchmark(*, robot: str, humans: int = 0, predictor: str = "orca_kkt",
         "median_ms": float(np.median(wall)),
         "p95_ms": float(np.percentile(wall, 95)),
         "max_ms": float(wall.max()),
-        "mean_iterations": float(iters.mean()),
+        # None when the solver does not report iterations (SNOPT, IPOPT).
+        "mean_iterations": None if np.any(iters < 0) else float(iters.mean()),
         "solver_failures": int(c.solver_failures),
         "fallbacks": int(c.fallbacks),
     }
@@ -120,13 +148,22 @@ def _Bench(args) -> int:
     robots = ["ridgeback_ur10", "stretch3"] if args.robot == "all" else [args.robot]
     results = []
     for robot in robots:
-        r = RunBenchmark(robot=robot, humans=args.humans, predictor=args.predictor,
-                         steps=args.steps, solver=args.solver)
+        r = RunBenchmark(
+            robot=robot,
+            humans=args.humans,
+            predictor=args.predictor,
+            steps=args.steps,
+            solver=args.solver,
+        )
         results.append(r)
-        print(f"{robot:15s} solver={r['solver']} steps={r['steps']}  "
-              f"median {r['median_ms']:.1f} ms  p95 {r['p95_ms']:.1f} ms  "
-              f"max {r['max_ms']:.1f} ms  mean iterations {r['mean_iterations']:.1f}  "
-              f"failures {r['solver_failures']}  fallbacks {r['fallbacks']}")
+        iters = r["mean_iterations"]
+        iters = "n/a" if iters is None else f"{iters:.1f}"
+        print(
+            f"{robot:15s} solver={r['solver']} steps={r['steps']}  "
+            f"median {r['median_ms']:.1f} ms  p95 {r['p95_ms']:.1f} ms  "
+            f"max {r['max_ms']:.1f} ms  mean iterations {iters}  "
+            f"failures {r['solver_failures']}  fallbacks {r['fallbacks']}"
+        )
     if args.json:
         Path(args.json).write_text(
             json.dumps(results[0] if len(results) == 1 else results, indent=2)
@@ -144,24 +181,54 @@ def MakeParser() -> argparse.ArgumentParser:
     run = sub.add_parser("run", help="simulate a named scenario")
     run.add_argument("file", help="a diagrams/*.scenarios.yaml file")
     run.add_argument("--scenario", required=True, help="scenario name in the file")
-    run.add_argument("--scenario_text", default="{}",
-                     help="YAML applied on top of the scenario, e.g. "
-                          "'{controller: {method: weighted_sum}}'")
-    run.add_argument("--duration", type=float, default=None,
-                     help="simulated seconds (default: the scenario's)")
+    run.add_argument(
+        "--scenario_text",
+        default="{}",
+        help="YAML applied on top of the scenario, e.g. "
+        "'{controller: {method: weighted_sum}}'",
+    )
+    run.add_argument(
+        "--duration",
+        type=float,
+        default=None,
+        help="simulated seconds (default: the scenario's)",
+    )
     run.add_argument("--no-meshcat", action="store_true", help="no visualization")
-    run.add_argument("--html", default=None,
-                     help="where to save the HTML replay (default out/NAME.html)")
-    run.add_argument("--graphviz", default=None,
-                     help="write the diagram (.dot, or .svg/.png with pydot)")
+    run.add_argument(
+        "--html",
+        default=None,
+        help="where to save the HTML replay (default out/NAME.html)",
+    )
+    run.add_argument(
+        "--graphviz",
+        default=None,
+        help="write the diagram (.dot, or .svg/.png with pydot)",
+    )
+    run.add_argument(
+        "--realtime_rate",
+        type=float,
+        default=None,
+        help="simulation speed vs. wall clock (default: 1 with "
+        "Meshcat so you can watch live, else as fast as possible)",
+    )
+    run.add_argument(
+        "--wait",
+        action="store_true",
+        help="keep the Meshcat server up after the run (replay it "
+        "there) until Enter or Ctrl-C",
+    )
     run.set_defaults(func=_Run)
 
     bench = sub.add_parser("bench", help="measure the controller's speed")
-    bench.add_argument("--robot", default="ridgeback_ur10",
-                       choices=["ridgeback_ur10", "stretch3", "all"])
+    bench.add_argument(
+        "--robot",
+        default="ridgeback_ur10",
+        choices=["ridgeback_ur10", "stretch3", "all"],
+    )
     bench.add_argument("--humans", type=int, default=0)
-    bench.add_argument("--predictor", default="orca_kkt",
-                       choices=["orca_kkt", "cvmm", "react"])
+    bench.add_argument(
+        "--predictor", default="orca_kkt", choices=["orca_kkt", "cvmm", "react"]
+    )
     bench.add_argument("--steps", type=int, default=100)
     bench.add_argument("--solver", default="rti", choices=["rti", "snopt", "ipopt"])
     bench.add_argument("--json", default=None, help="write the figures as JSON")

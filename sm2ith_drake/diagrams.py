@@ -7,8 +7,13 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams, Role
-from pydrake.geometry import SceneGraph
+from pydrake.geometry import (
+    Meshcat,
+    MeshcatVisualizer,
+    MeshcatVisualizerParams,
+    Role,
+    SceneGraph,
+)
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import MatrixGain
@@ -63,26 +68,38 @@ def MakeSimulation(
     builder = DiagramBuilder()
     sim_robot = builder.AddNamedSystem(
         "robot",
-        KinematicRobot(robot, initial_q=q0, initial_nu=nu0,
-                       time_step=scenario.robot_time_step),
+        KinematicRobot(
+            robot, initial_q=q0, initial_nu=nu0, time_step=scenario.robot_time_step
+        ),
     )
     planner = builder.AddNamedSystem("planner", TaskPlanner(tasks, num_states=n + m))
     controller = builder.AddNamedSystem(
         "controller", HierarchicalMpc(robot, tasks, scenario.controller)
     )
     logger = builder.AddNamedSystem("logger", RunLogger(robot, tasks, period=period))
-    builder.Connect(sim_robot.GetOutputPort("state"), planner.GetInputPort("robot_state"))
-    builder.Connect(sim_robot.GetOutputPort("state"),
-                    controller.GetInputPort("robot_state"))
-    builder.Connect(planner.GetOutputPort("task_references"),
-                    controller.GetInputPort("task_references"))
-    builder.Connect(controller.GetOutputPort("command"),
-                    sim_robot.GetInputPort("command"))
-    builder.Connect(sim_robot.GetOutputPort("state"), logger.GetInputPort("robot_state"))
-    builder.Connect(planner.GetOutputPort("task_references"),
-                    logger.GetInputPort("task_references"))
-    builder.Connect(controller.GetOutputPort("controller_state"),
-                    logger.GetInputPort("controller_state"))
+    builder.Connect(
+        sim_robot.GetOutputPort("state"), planner.GetInputPort("robot_state")
+    )
+    builder.Connect(
+        sim_robot.GetOutputPort("state"), controller.GetInputPort("robot_state")
+    )
+    builder.Connect(
+        planner.GetOutputPort("task_references"),
+        controller.GetInputPort("task_references"),
+    )
+    builder.Connect(
+        controller.GetOutputPort("command"), sim_robot.GetInputPort("command")
+    )
+    builder.Connect(
+        sim_robot.GetOutputPort("state"), logger.GetInputPort("robot_state")
+    )
+    builder.Connect(
+        planner.GetOutputPort("task_references"), logger.GetInputPort("task_references")
+    )
+    builder.Connect(
+        controller.GetOutputPort("controller_state"),
+        logger.GetInputPort("controller_state"),
+    )
 
     # Geometry: a plant used only for its geometry, posed from q.
     scene_graph = builder.AddNamedSystem("scene_graph", SceneGraph())
@@ -94,8 +111,10 @@ def MakeSimulation(
     )
     builder.Connect(sim_robot.GetOutputPort("state"), q_of_state.get_input_port())
     builder.Connect(q_of_state.get_output_port(), to_pose.get_input_port())
-    builder.Connect(to_pose.get_output_port(),
-                    scene_graph.get_source_pose_port(plant.get_source_id()))
+    builder.Connect(
+        to_pose.get_output_port(),
+        scene_graph.get_source_pose_port(plant.get_source_id()),
+    )
 
     if meshcat is not None:
         _FrameScene(meshcat, q0, tasks)
@@ -107,12 +126,15 @@ def MakeSimulation(
         if scenario.visualization.draw_plans:
             vis = builder.AddNamedSystem(
                 "plan_visualizer",
-                PlanVisualizer(meshcat, tasks, horizon=scenario.controller.horizon,
-                               period=period),
+                PlanVisualizer(
+                    meshcat, tasks, horizon=scenario.controller.horizon, period=period
+                ),
             )
             builder.Connect(controller.GetOutputPort("plan"), vis.GetInputPort("plan"))
-            builder.Connect(planner.GetOutputPort("task_references"),
-                            vis.GetInputPort("task_references"))
+            builder.Connect(
+                planner.GetOutputPort("task_references"),
+                vis.GetInputPort("task_references"),
+            )
     diagram = builder.Build()
     diagram.set_name(f"sm2ith_{robot.name}")
     return diagram
@@ -129,8 +151,11 @@ def _FrameScene(meshcat: Meshcat, q0, tasks) -> None:
     center = points.mean(axis=0)
     extent = max(2.0, float(np.max(np.linalg.norm(points - center, axis=1))))
     meshcat.SetCameraPose(
-        camera_in_world=[center[0] - 1.2 * extent, center[1] - 1.6 * extent,
-                         1.4 * extent],
+        camera_in_world=[
+            center[0] - 1.2 * extent,
+            center[1] - 1.6 * extent,
+            1.4 * extent,
+        ],
         target_in_world=[center[0], center[1], 0.5],
     )
 
@@ -152,18 +177,23 @@ def RunSimulation(
     robot=None,
     tasks=None,
     progress: bool = False,
+    realtime_rate: float | None = None,
 ) -> RunResult:
     """Builds and simulates ``scenario``; returns the log and its metrics.
 
     If ``html_path`` is given (and ``meshcat``), the run is recorded and saved
-    as a self-contained HTML replay.
+    as a self-contained HTML replay. ``realtime_rate`` overrides the
+    scenario's simulator_config (1.0: real time; 0: as fast as possible).
     """
     from sm2ith_drake.experiments.metrics import SummarizeRun
 
-    diagram = MakeSimulation(scenario=scenario, meshcat=meshcat, robot=robot,
-                             tasks=tasks)
+    diagram = MakeSimulation(
+        scenario=scenario, meshcat=meshcat, robot=robot, tasks=tasks
+    )
     simulator = Simulator(diagram)
     ApplySimulatorConfig(scenario.simulator_config, simulator)
+    if realtime_rate is not None:
+        simulator.set_target_realtime_rate(realtime_rate)
     if meshcat is not None and html_path:
         meshcat.StartRecording(set_visualizations_while_recording=True)
     end = scenario.simulation_duration if duration is None else duration
@@ -172,8 +202,13 @@ def RunSimulation(
         steps = max(1, int(np.ceil(end)))
         for i in range(1, steps + 1):
             simulator.AdvanceTo(min(end, end * i / steps))
-            print(f"\r  simulated {simulator.get_context().get_time():6.1f} / "
-                  f"{end:.1f} s", end="", file=sys.stderr, flush=True)
+            print(
+                f"\r  simulated {simulator.get_context().get_time():6.1f} / "
+                f"{end:.1f} s",
+                end="",
+                file=sys.stderr,
+                flush=True,
+            )
         print(file=sys.stderr)
     else:
         simulator.AdvanceTo(end)

@@ -30,8 +30,11 @@ def segment_closest_points(p1, q1, p2, q2):
     safe_a = np.where(a > _EPS, a, 1.0)
     safe_e = np.where(e > _EPS, e, 1.0)
     # General case: s from the infinite lines (clamped), then t from s.
-    s = np.where(denom > _EPS * np.maximum(a * e, _EPS),
-                 np.clip((b * f - c * e) / np.where(denom > 0, denom, 1.0), 0, 1), 0.0)
+    s = np.where(
+        denom > _EPS * np.maximum(a * e, _EPS),
+        np.clip((b * f - c * e) / np.where(denom > 0, denom, 1.0), 0, 1),
+        0.0,
+    )
     t = (b * s + f) / safe_e
     # t outside [0, 1]: clamp it and recompute s.
     s = np.where(t < 0, np.clip(-c / safe_a, 0, 1), s)

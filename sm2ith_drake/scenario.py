@@ -5,7 +5,6 @@ A :class:`Scenario` is the only configuration. Named scenarios live in
 uses Drake's strict ``yaml_load_typed``: an unknown key is an error naming it.
 """
 
-
 import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -189,14 +188,17 @@ def ValidateScenario(scenario: Scenario) -> None:
     if c.horizon < 1 or c.time_step <= 0:
         raise ScenarioError("controller.horizon must be ≥ 1 and time_step > 0")
     if c.rti_iterations < 1 or c.rti_proximal_weight < 0:
-        raise ScenarioError("controller.rti_iterations must be ≥ 1 and "
-                            "rti_proximal_weight ≥ 0")
+        raise ScenarioError(
+            "controller.rti_iterations must be ≥ 1 and rti_proximal_weight ≥ 0"
+        )
     if c.lexicographic_tolerance < 0 or c.self_collision_distance < 0:
-        raise ScenarioError("controller.lexicographic_tolerance and "
-                            "self_collision_distance must be ≥ 0")
+        raise ScenarioError(
+            "controller.lexicographic_tolerance and self_collision_distance must be ≥ 0"
+        )
     if c.control_period < 0 or c.time_budget < 0 or c.max_fallback_steps < 0:
-        raise ScenarioError("controller.control_period, time_budget and "
-                            "max_fallback_steps must be ≥ 0")
+        raise ScenarioError(
+            "controller.control_period, time_budget and max_fallback_steps must be ≥ 0"
+        )
     if not scenario.tasks:
         raise ScenarioError("a scenario needs at least one task")
     names = [t.name or t.kind for t in scenario.tasks]

@@ -26,14 +26,20 @@ def _final_error(result, task):
 @pytest.fixture(scope="module")
 def conflict_runs():
     runs = {}
-    for name in ["conflict_ee_over_base", "conflict_base_over_ee",
-                 "conflict_weighted_sum"]:
+    for name in [
+        "conflict_ee_over_base",
+        "conflict_base_over_ee",
+        "conflict_weighted_sum",
+    ]:
         runs[name] = _run(name)[1]
     # Single-task optima: each task alone.
-    runs["ee_only"] = _run("conflict_ee_over_base",
-                           "{tasks: [{kind: ee_position, target: [1.2, 0.0, 0.9]}]}")[1]
-    runs["base_only"] = _run("conflict_ee_over_base",
-                             "{tasks: [{kind: base_position, target: [4.0, 0.0]}]}")[1]
+    runs["ee_only"] = _run(
+        "conflict_ee_over_base",
+        "{tasks: [{kind: ee_position, target: [1.2, 0.0, 0.9]}]}",
+    )[1]
+    runs["base_only"] = _run(
+        "conflict_ee_over_base", "{tasks: [{kind: base_position, target: [4.0, 0.0]}]}"
+    )[1]
     return runs
 
 
@@ -93,8 +99,12 @@ def test_lexicographic_invariant_every_step(conflict_runs):
 def test_lexicographic_invariant_five_levels():
     scenario, result = _run("everything", duration=3.0)
     tasks = [t.name or t.kind for t in scenario.tasks]
-    assert _check_lexicographic_invariant(
-        result.log, tasks, scenario.controller.lexicographic_tolerance) >= 10
+    assert (
+        _check_lexicographic_invariant(
+            result.log, tasks, scenario.controller.lexicographic_tolerance
+        )
+        >= 10
+    )
 
 
 def test_limits_never_exceeded(conflict_runs):
@@ -106,8 +116,11 @@ def test_limits_never_exceeded(conflict_runs):
 @pytest.mark.parametrize("max_iter", [1, 0])
 def test_forced_solver_failure_brakes(max_iter):
     # A robot already moving, with a solver that cannot succeed.
-    text = ("{controller: {solver_options: {options: {PIQP: {max_iter: %d}}}}, "
-            "robot: {initial_nu: [0.5, 0.0, 0.0, 0, 0, 0, 0, 0, 0]}}" % max_iter)
+    piqp = f"{{PIQP: {{max_iter: {max_iter}}}}}"
+    text = (
+        f"{{controller: {{solver_options: {{options: {piqp}}}}}, "
+        "robot: {initial_nu: [0.5, 0.0, 0.0, 0, 0, 0, 0, 0, 0]}}"
+    )
     scenario, result = _run("conflict_ee_over_base", text, duration=2.0)
     c = result.log.counters
     assert c.steps >= 10
@@ -123,9 +136,11 @@ def test_forced_solver_failure_brakes(max_iter):
 def test_rti_converges_to_the_nlp_solution():
     """Many RTI iterations on one stage reach the SNOPT solution of the same
     nonlinear program (the validation path)."""
-    scenario = LoadScenario(filename=REACH, scenario_name="ridgeback_ur10_reach",
-                            scenario_text="{tasks: [{kind: ee_position, "
-                                          "target: [1.0, 0.5, 0.8]}]}")
+    scenario = LoadScenario(
+        filename=REACH,
+        scenario_name="ridgeback_ur10_reach",
+        scenario_text="{tasks: [{kind: ee_position, target: [1.0, 0.5, 0.8]}]}",
+    )
     from sm2ith_drake.diagrams import MakeRobot
 
     robot = MakeRobot(scenario)

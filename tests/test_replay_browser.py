@@ -16,20 +16,34 @@ CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 
 def _screenshot(html, png, user_data_dir):
     subprocess.run(
-        [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
-         "--disable-background-networking", "--disable-component-update",
-         "--disable-sync", f"--user-data-dir={user_data_dir}",
-         "--window-size=800,600", "--virtual-time-budget=8000",
-         f"--screenshot={png}", f"file://{html}"],
-        capture_output=True, timeout=180, check=True,
+        [
+            CHROMIUM,
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            f"--user-data-dir={user_data_dir}",
+            "--window-size=800,600",
+            "--virtual-time-budget=8000",
+            f"--screenshot={png}",
+            f"file://{html}",
+        ],
+        capture_output=True,
+        timeout=180,
+        check=True,
     )
     import matplotlib.image
 
     return matplotlib.image.imread(str(png))[..., :3]
 
 
-@pytest.mark.skipif(CHROMIUM is None and not os.environ.get("CI"),
-                    reason="Debian's chromium is not installed (.ci/run installs it)")
+@pytest.mark.skipif(
+    CHROMIUM is None and not os.environ.get("CI"),
+    reason="Debian's chromium is not installed (.ci/run installs it)",
+)
 def test_html_replay_shows_robot(tmp_path):
     assert CHROMIUM is not None, "CI must install chromium"
     from pydrake.geometry import Meshcat
@@ -38,11 +52,12 @@ def test_html_replay_shows_robot(tmp_path):
     # The same viewer without a robot: the background and grid only.
     empty_html = tmp_path / "empty.html"
     empty_html.write_text(meshcat.StaticHtml())
-    scenario = LoadScenario(filename=GetDiagramsDir() / "reach.scenarios.yaml",
-                            scenario_name="ridgeback_ur10_reach")
+    scenario = LoadScenario(
+        filename=GetDiagramsDir() / "reach.scenarios.yaml",
+        scenario_name="ridgeback_ur10_reach",
+    )
     html = tmp_path / "replay.html"
-    result = RunSimulation(scenario, meshcat=meshcat, duration=1.0,
-                           html_path=str(html))
+    result = RunSimulation(scenario, meshcat=meshcat, duration=1.0, html_path=str(html))
     assert result.html_path == str(html)
     text = html.read_text()
     assert "<html" in text.lower() and len(text) > 100_000

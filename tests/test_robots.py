@@ -35,12 +35,21 @@ def test_joint_counts_and_names(ridgeback, stretch):
     assert stretch.base_kind == "differential"
     assert ridgeback.base_kind == "holonomic"
     assert stretch.position_names == [
-        "base_x", "base_y", "base_theta", "joint_lift", "joint_arm",
-        "joint_wrist_yaw", "joint_wrist_pitch",
+        "base_x",
+        "base_y",
+        "base_theta",
+        "joint_lift",
+        "joint_arm",
+        "joint_wrist_yaw",
+        "joint_wrist_pitch",
     ]
     assert ridgeback.position_names[3:] == [
-        "shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint",
-        "wrist_1_joint", "wrist_2_joint", "wrist_3_joint",
+        "shoulder_pan_joint",
+        "shoulder_lift_joint",
+        "elbow_joint",
+        "wrist_1_joint",
+        "wrist_2_joint",
+        "wrist_3_joint",
     ]
 
 
@@ -51,10 +60,12 @@ def test_limits_match_the_public_specs(ridgeback, stretch):
     np.testing.assert_allclose(stretch.q_upper[3:], [1.1, 0.52, 4.0, 0.56])
     # UR10: ±360° except the elbow (±180°); 120°/s base and shoulder,
     # 180°/s elbow and wrists; Ridgeback 1.1 m/s.
-    np.testing.assert_allclose(ridgeback.q_upper[3:],
-                               [6.2832, 6.2832, 3.1416, 6.2832, 6.2832, 6.2832])
-    np.testing.assert_allclose(ridgeback.nu_upper[3:],
-                               np.deg2rad([120, 120, 180, 180, 180, 180]), rtol=1e-4)
+    np.testing.assert_allclose(
+        ridgeback.q_upper[3:], [6.2832, 6.2832, 3.1416, 6.2832, 6.2832, 6.2832]
+    )
+    np.testing.assert_allclose(
+        ridgeback.nu_upper[3:], np.deg2rad([120, 120, 180, 180, 180, 180]), rtol=1e-4
+    )
     np.testing.assert_allclose(ridgeback.nu_upper[:2], [1.1, 1.1])
     for robot in (ridgeback, stretch):
         assert np.all(np.isinf(robot.q_lower[:3]))
@@ -64,12 +75,14 @@ def test_limits_match_the_public_specs(ridgeback, stretch):
 
 def _DhTransform(theta, d, a, alpha):
     ct, st, ca, sa = np.cos(theta), np.sin(theta), np.cos(alpha), np.sin(alpha)
-    return np.array([
-        [ct, -st * ca, st * sa, a * ct],
-        [st, ct * ca, -ct * sa, a * st],
-        [0, sa, ca, d],
-        [0, 0, 0, 1],
-    ])
+    return np.array(
+        [
+            [ct, -st * ca, st * sa, a * ct],
+            [st, ct * ca, -ct * sa, a * st],
+            [0, sa, ca, d],
+            [0, 0, 0, 1],
+        ]
+    )
 
 
 def test_ur10_forward_kinematics_matches_closed_form_dh(ridgeback):
@@ -107,18 +120,25 @@ def test_vectorized_kinematics_match_multibody_plant(name):
     kin = robot.CalcKinematics(qs)
     for k, q in enumerate(qs):
         plant.SetPositions(context, robot.PlantPositions(q))
-        np.testing.assert_allclose(kin.p_WE[k], ee.CalcPoseInWorld(context).translation(),
-                                   atol=1e-12)
+        np.testing.assert_allclose(
+            kin.p_WE[k], ee.CalcPoseInWorld(context).translation(), atol=1e-12
+        )
         J = plant.CalcJacobianTranslationalVelocity(
-            context, JacobianWrtVariable.kQDot, ee, np.zeros(3),
-            plant.world_frame(), plant.world_frame())
+            context,
+            JacobianWrtVariable.kQDot,
+            ee,
+            np.zeros(3),
+            plant.world_frame(),
+            plant.world_frame(),
+        )
         np.testing.assert_allclose(kin.J_WE[k], J @ robot.plant_from_q, atol=1e-12)
         for c, capsule in enumerate(robot.capsules):
             body = plant.GetBodyByName(capsule.body)
             X = body.body_frame().CalcPoseInWorld(context)
             for e, p in enumerate((capsule.p_A, capsule.p_B)):
-                np.testing.assert_allclose(kin.capsule_points[k, c, e], X @ np.array(p),
-                                           atol=1e-12)
+                np.testing.assert_allclose(
+                    kin.capsule_points[k, c, e], X @ np.array(p), atol=1e-12
+                )
 
 
 @pytest.mark.parametrize("name", ["ridgeback_ur10", "stretch3"])
@@ -132,11 +152,14 @@ def test_jacobians_match_finite_differences(name):
         dq = np.zeros(robot.num_positions)
         dq[i] = h
         plus, minus = robot.CalcKinematics(q + dq), robot.CalcKinematics(q - dq)
-        np.testing.assert_allclose(kin.J_WE[0, :, i], (plus.p_WE - minus.p_WE)[0] / (2 * h),
-                                   atol=1e-7)
+        np.testing.assert_allclose(
+            kin.J_WE[0, :, i], (plus.p_WE - minus.p_WE)[0] / (2 * h), atol=1e-7
+        )
         np.testing.assert_allclose(
             kin.capsule_jacobians[0, ..., i],
-            (plus.capsule_points - minus.capsule_points)[0] / (2 * h), atol=1e-7)
+            (plus.capsule_points - minus.capsule_points)[0] / (2 * h),
+            atol=1e-7,
+        )
 
 
 @pytest.mark.parametrize("name", ["ridgeback_ur10", "stretch3"])
@@ -146,10 +169,12 @@ def test_dGnu_dq_matches_finite_differences(name):
     q = _RandomQ(robot, rng, 1)[0]
     nu = rng.uniform(robot.nu_lower, robot.nu_upper)
     h = 1e-6
-    fd = np.column_stack([
-        (robot.G(q + h * e) @ nu - robot.G(q - h * e) @ nu) / (2 * h)
-        for e in np.eye(robot.num_positions)
-    ])
+    fd = np.column_stack(
+        [
+            (robot.G(q + h * e) @ nu - robot.G(q - h * e) @ nu) / (2 * h)
+            for e in np.eye(robot.num_positions)
+        ]
+    )
     np.testing.assert_allclose(robot.dGnu_dq(q, nu), fd, atol=1e-8)
 
 
@@ -194,21 +219,26 @@ def test_self_collision_gradient_matches_finite_differences(ridgeback):
     rng = np.random.default_rng(4)
     q = ridgeback.default_q + rng.normal(scale=0.3, size=ridgeback.num_positions)
     pairs = ridgeback.self_collision_pairs
-    d, grad = capsule_distance_and_gradient(ridgeback, ridgeback.CalcKinematics(q), pairs)
+    d, grad = capsule_distance_and_gradient(
+        ridgeback, ridgeback.CalcKinematics(q), pairs
+    )
     h = 1e-6
     for i in range(ridgeback.num_positions):
         dq = np.eye(ridgeback.num_positions)[i] * h
-        dp, _ = capsule_distance_and_gradient(ridgeback, ridgeback.CalcKinematics(q + dq),
-                                              pairs)
-        dm, _ = capsule_distance_and_gradient(ridgeback, ridgeback.CalcKinematics(q - dq),
-                                              pairs)
+        dp, _ = capsule_distance_and_gradient(
+            ridgeback, ridgeback.CalcKinematics(q + dq), pairs
+        )
+        dm, _ = capsule_distance_and_gradient(
+            ridgeback, ridgeback.CalcKinematics(q - dq), pairs
+        )
         np.testing.assert_allclose(grad[0, :, i], (dp - dm)[0] / (2 * h), atol=1e-6)
 
 
 def test_default_configurations_are_collision_free(ridgeback, stretch):
     for robot in (ridgeback, stretch):
         d, _ = capsule_distance_and_gradient(
-            robot, robot.CalcKinematics(robot.default_q), robot.self_collision_pairs)
+            robot, robot.CalcKinematics(robot.default_q), robot.self_collision_pairs
+        )
         assert np.all(d > 0.1)
 
 

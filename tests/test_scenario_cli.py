@@ -24,14 +24,20 @@ def test_every_shipped_scenario_loads():
 
 def test_unknown_key_is_named():
     with pytest.raises(ScenarioError, match="controler"):
-        LoadScenario(filename=CONFLICT, scenario_name="minimal",
-                     scenario_text="{controler: {horizon: 3}}")
+        LoadScenario(
+            filename=CONFLICT,
+            scenario_name="minimal",
+            scenario_text="{controler: {horizon: 3}}",
+        )
 
 
 def test_override_changes_one_field():
     base = LoadScenario(filename=CONFLICT, scenario_name="conflict_ee_over_base")
-    changed = LoadScenario(filename=CONFLICT, scenario_name="conflict_ee_over_base",
-                           scenario_text="{controller: {horizon: 7}}")
+    changed = LoadScenario(
+        filename=CONFLICT,
+        scenario_name="conflict_ee_over_base",
+        scenario_text="{controller: {horizon: 7}}",
+    )
     assert base.controller.horizon == 10
     assert changed.controller.horizon == 7
     assert changed.controller.time_step == base.controller.time_step
@@ -40,16 +46,27 @@ def test_override_changes_one_field():
 
 def test_bad_values_rejected():
     with pytest.raises(ScenarioError, match="method"):
-        LoadScenario(filename=CONFLICT, scenario_name="minimal",
-                     scenario_text="{controller: {method: best}}")
+        LoadScenario(
+            filename=CONFLICT,
+            scenario_name="minimal",
+            scenario_text="{controller: {method: best}}",
+        )
     with pytest.raises(ScenarioError, match="task kind"):
-        LoadScenario(filename=CONFLICT, scenario_name="minimal",
-                     scenario_text="{tasks: [{kind: dance}]}")
+        LoadScenario(
+            filename=CONFLICT,
+            scenario_name="minimal",
+            scenario_text="{tasks: [{kind: dance}]}",
+        )
 
 
 def _cli(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "sm2ith_drake.cli", *args],
-                          capture_output=True, text=True, cwd=cwd, timeout=120)
+    return subprocess.run(
+        [sys.executable, "-m", "sm2ith_drake.cli", *args],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        timeout=120,
+    )
 
 
 @pytest.mark.parametrize(
@@ -57,8 +74,10 @@ def _cli(*args, cwd=None):
     [
         (["run", "no_such_file.scenarios.yaml", "--scenario", "x"], "not found"),
         (["run", CONFLICT, "--scenario", "nope"], "valid names: conflict_ee_over_base"),
-        (["run", CONFLICT, "--scenario", "minimal", "--scenario_text", "{a: [}"],
-         "minimal"),
+        (
+            ["run", CONFLICT, "--scenario", "minimal", "--scenario_text", "{a: [}"],
+            "minimal",
+        ),
     ],
 )
 def test_cli_user_errors_are_one_line(args, message, tmp_path):
@@ -79,8 +98,11 @@ def test_cli_malformed_yaml_file(tmp_path):
 
 
 def _AllScenarios():
-    return [(path.name, name) for path in sorted(GetDiagramsDir().glob("*.scenarios.yaml"))
-            for name in ScenarioNames(path)]
+    return [
+        (path.name, name)
+        for path in sorted(GetDiagramsDir().glob("*.scenarios.yaml"))
+        for name in ScenarioNames(path)
+    ]
 
 
 @pytest.mark.parametrize("filename,name", _AllScenarios())

@@ -18,7 +18,7 @@ import numpy as np
 from sm2ith_drake.control.htmpc import HierarchicalSolver, MpcSolution
 from sm2ith_drake.control.program import MpcProgram
 from sm2ith_drake.control.tasks import MakeTask
-from sm2ith_drake.scenario import ControlPeriod, ControllerConfig
+from sm2ith_drake.scenario import ControllerConfig, ControlPeriod
 
 # A replayed plan is consistent while the measured ν is this close (per
 # component) to the ν the plan predicted for now.
@@ -110,14 +110,15 @@ class MpcController:
         N, m = self.program.layout.N, self.robot.num_velocities
         u = np.zeros((N, m))
         if state.plan is not None:
-            prev = state.plan.u[self.shift * (state.plan_age + 1):]
+            prev = state.plan.u[self.shift * (state.plan_age + 1) :]
             u[: len(prev)] = prev
             if len(prev) and len(prev) < N:
-                u[len(prev):] = 0.0
+                u[len(prev) :] = 0.0
         return self.program.Rollout(q0, nu0, u)
 
-    def Step(self, state: ControllerState, *, time_now: float, q0, nu0,
-             targets: dict) -> ControllerState:
+    def Step(
+        self, state: ControllerState, *, time_now: float, q0, nu0, targets: dict
+    ) -> ControllerState:
         """Computes the next command; returns the new state (input unchanged)."""
         start = time.perf_counter()
         q0 = np.asarray(q0, dtype=float)
@@ -130,7 +131,9 @@ class MpcController:
         if np.all(np.isfinite(q0)) and np.all(np.isfinite(nu0)):
             try:
                 solution = self.solver.Solve(
-                    q0=q0, nu0=nu0, targets=targets,
+                    q0=q0,
+                    nu0=nu0,
+                    targets=targets,
                     z_guess=self.WarmStart(state, q0, nu0),
                 )
             except (RuntimeError, ValueError, np.linalg.LinAlgError) as e:
@@ -171,7 +174,9 @@ class MpcController:
         nu_now = np.nan_to_num(nu0)
         new.command_u = np.asarray(u, dtype=float)
         new.command_nu = np.clip(
-            nu_now + self.period * new.command_u, self.robot.nu_lower, self.robot.nu_upper
+            nu_now + self.period * new.command_u,
+            self.robot.nu_lower,
+            self.robot.nu_upper,
         )
         record.wall_time = time.perf_counter() - start
         new.record = record

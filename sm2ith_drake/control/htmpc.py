@@ -131,8 +131,10 @@ class _Qp:
 
     def Solve(self, P_dense, q, a_values, x_lower, x_upper, lower, upper):
         """Returns (x, status, iterations); x is None if nothing usable."""
-        P = sp.csc_matrix((P_dense[self._p_indices, self._p_cols], self._p_indices,
-                           self._p_indptr), (self.n, self.n))
+        P = sp.csc_matrix(
+            (P_dense[self._p_indices, self._p_cols], self._p_indices, self._p_indptr),
+            (self.n, self.n),
+        )
         A = self._Matrix(a_values, self._blocks[0])
         G = self._Matrix(a_values, self._blocks[1])
         b = lower[self._eq_rows]
@@ -145,8 +147,9 @@ class _Qp:
                 solver.setup(P, q, A, b, G, h_l, h_u, x_lower, x_upper)
                 self._solver = solver
             else:
-                self._solver.update(P=P, c=q, A=A, b=b, G=G, h_l=h_l, h_u=h_u,
-                                    x_l=x_lower, x_u=x_upper)
+                self._solver.update(
+                    P=P, c=q, A=A, b=b, G=G, h_l=h_l, h_u=h_u, x_l=x_lower, x_u=x_upper
+                )
             status = self._solver.solve()
         except Exception as e:  # noqa: BLE001 (an invalid setting, a NaN)
             self._solver = None
@@ -169,8 +172,13 @@ def _Linearize(group: ConstraintGroup, point, num_variables):
 class RtiStageSolver:
     """Solves one stage as a sparse QP linearized at a point (see module doc)."""
 
-    def __init__(self, program: MpcProgram, stage: Stage, qp_options: dict,
-                 proximal_weight: float = 1.0):
+    def __init__(
+        self,
+        program: MpcProgram,
+        stage: Stage,
+        qp_options: dict,
+        proximal_weight: float = 1.0,
+    ):
         self.program = program
         self.stage = stage
         self.proximal_weight = proximal_weight
@@ -208,9 +216,13 @@ class RtiStageSolver:
         p_pattern = (np.concatenate(prows), np.concatenate(pcols))
         settings = dict(_QP_DEFAULTS)
         settings.update(qp_options)
-        self._qp = _Qp(num_variables=nv, p_pattern=p_pattern, a_pattern=a_pattern,
-                       equality_rows=equality_rows,
-                       settings=settings)
+        self._qp = _Qp(
+            num_variables=nv,
+            p_pattern=p_pattern,
+            a_pattern=a_pattern,
+            equality_rows=equality_rows,
+            settings=settings,
+        )
 
     def Solve(self, point, *, lower, upper, lex_bounds: dict, linearizations: dict):
         """One QP at ``point``. ``lex_bounds`` maps task names to |e*| + tol;
@@ -249,7 +261,12 @@ class RtiStageSolver:
             lo.append(-b - c)
             hi.append(b - c)
         x, status, iters = self._qp.Solve(
-            P, qvec, np.concatenate(a_vals), lower, upper, np.concatenate(lo),
+            P,
+            qvec,
+            np.concatenate(a_vals),
+            lower,
+            upper,
+            np.concatenate(lo),
             np.concatenate(hi),
         )
         success = status in ("solved",)
@@ -257,20 +274,24 @@ class RtiStageSolver:
         if x is not None and np.all(np.isfinite(x)):
             for group in self._lex + [g for g, _ in self._cost]:
                 vals, c = lin(group)
-                e = np.bincount(group.rows, vals * x[group.cols], minlength=group.num_rows)
+                e = np.bincount(
+                    group.rows, vals * x[group.cols], minlength=group.num_rows
+                )
                 errors[group.task.name] = (e + c).reshape(program.layout.N, -1)
         else:
             success = False
-        return StageResult(z=x, success=success, status=status, iterations=iters,
-                           errors=errors)
+        return StageResult(
+            z=x, success=success, status=status, iterations=iters, errors=errors
+        )
 
 
 class NlpStageSolver:
     """One stage as a nonlinear MathematicalProgram (built once) solved by
     SNOPT or IPOPT with analytic Jacobians (see module doc)."""
 
-    def __init__(self, program: MpcProgram, stage: Stage, solver_name: str,
-                 solver_options):
+    def __init__(
+        self, program: MpcProgram, stage: Stage, solver_name: str, solver_options
+    ):
         from pydrake.solvers import IpoptSolver, MathematicalProgram, SnoptSolver
 
         self.program = program
@@ -289,8 +310,9 @@ class NlpStageSolver:
         self._targets = {}
         self._cache = {"key": None, "point": None}
         for group, lo, hi in program.ConstraintGroups():
-            prog.AddConstraint(self._Wrap(group), lo, hi, self._z,
-                               description=group.name)
+            prog.AddConstraint(
+                self._Wrap(group), lo, hi, self._z, description=group.name
+            )
         self._lex = {}
         for task in stage.lexicographic_tasks:
             group = program.task_groups[task.name]
@@ -298,10 +320,14 @@ class NlpStageSolver:
             self._lex[task.name] = prog.AddConstraint(
                 self._Wrap(group), -big, big, self._z, description="lex:" + task.name
             )
-        self._cost_groups = [(program.task_groups[t.name], w) for t, w in stage.cost_tasks]
+        self._cost_groups = [
+            (program.task_groups[t.name], w) for t, w in stage.cost_tasks
+        ]
         prog.AddCost(self._CostFunction, self._z, description="tasks")
         prog.AddQuadraticCost(
-            np.diag(program.effort_diagonal), program.linear_cost, self._z,
+            np.diag(program.effort_diagonal),
+            program.linear_cost,
+            self._z,
             is_convex=True,
         )
         self._prog = prog
@@ -314,7 +340,11 @@ class NlpStageSolver:
         return self._cache["point"]
 
     def _Wrap(self, group):
-        from pydrake.autodiffutils import ExtractGradient, ExtractValue, InitializeAutoDiff
+        from pydrake.autodiffutils import (
+            ExtractGradient,
+            ExtractValue,
+            InitializeAutoDiff,
+        )
 
         nv = self._nv
 
@@ -330,7 +360,11 @@ class NlpStageSolver:
         return f
 
     def _CostFunction(self, x):
-        from pydrake.autodiffutils import ExtractGradient, ExtractValue, InitializeAutoDiff
+        from pydrake.autodiffutils import (
+            ExtractGradient,
+            ExtractValue,
+            InitializeAutoDiff,
+        )
 
         autodiff = x.dtype != float
         xv = ExtractValue(x).reshape(-1) if autodiff else x
@@ -344,7 +378,9 @@ class NlpStageSolver:
                 grad += group.DenseJacobian(vals, self._nv).T @ (w * g)
         if not autodiff:
             return cost
-        return InitializeAutoDiff(np.array([cost]), (grad @ ExtractGradient(x))[None, :])[0, 0]
+        return InitializeAutoDiff(
+            np.array([cost]), (grad @ ExtractGradient(x))[None, :]
+        )[0, 0]
 
     def Solve(self, point, *, lower, upper, lex_bounds: dict, linearizations=None):
         self._targets.clear()
@@ -359,20 +395,34 @@ class NlpStageSolver:
         success = bool(result.is_success())
         errors = {}
         final = self.program.MakePoint(z, point.targets)
-        for task in self.stage.lexicographic_tasks + [t for t, _ in self.stage.cost_tasks]:
+        for task in self.stage.lexicographic_tasks + [
+            t for t, _ in self.stage.cost_tasks
+        ]:
             g, _ = self.program.task_groups[task.name].Eval(final)
             errors[task.name] = g.reshape(self.program.layout.N, -1)
-        return StageResult(z=z, success=success, status=str(result.get_solution_result()),
-                           iterations=-1, errors=errors)
+        return StageResult(
+            z=z,
+            success=success,
+            status=str(result.get_solution_result()),
+            iterations=-1,
+            errors=errors,
+        )
 
 
 class HierarchicalSolver:
     """Solves the whole hierarchy (or the weighted sum) for one control step."""
 
-    def __init__(self, program: MpcProgram, *, method: str = "htmpc",
-                 solver: str = "rti", solver_options=None,
-                 lexicographic_tolerance: float = 1e-3, rti_iterations: int = 1,
-                 rti_proximal_weight: float = 1.0):
+    def __init__(
+        self,
+        program: MpcProgram,
+        *,
+        method: str = "htmpc",
+        solver: str = "rti",
+        solver_options=None,
+        lexicographic_tolerance: float = 1e-3,
+        rti_iterations: int = 1,
+        rti_proximal_weight: float = 1.0,
+    ):
         from pydrake.solvers import SolverOptions
 
         self.program = program
@@ -384,11 +434,14 @@ class HierarchicalSolver:
         options = solver_options if solver_options is not None else SolverOptions()
         if solver == "rti":
             qp_options = dict(options.options.get("PIQP", {}))
-            self._solvers = [RtiStageSolver(program, s, qp_options, rti_proximal_weight)
-                             for s in self.stages]
+            self._solvers = [
+                RtiStageSolver(program, s, qp_options, rti_proximal_weight)
+                for s in self.stages
+            ]
         else:
-            self._solvers = [NlpStageSolver(program, s, solver, options)
-                             for s in self.stages]
+            self._solvers = [
+                NlpStageSolver(program, s, solver, options) for s in self.stages
+            ]
 
     def Solve(self, *, q0, nu0, targets: dict, z_guess: np.ndarray) -> MpcSolution:
         """Runs every stage in priority order from the initial guess.
@@ -407,9 +460,11 @@ class HierarchicalSolver:
         success, status, iterations = True, "solved", 0
         for it in range(passes):
             point = program.MakePoint(z, targets)
-            z_pass, ok, why, pass_results = self._SolveHierarchy(
-                point, lower, upper)
-            iterations += sum(r.iterations for r in pass_results)
+            z_pass, ok, why, pass_results = self._SolveHierarchy(point, lower, upper)
+            if iterations >= 0 and all(r.iterations >= 0 for r in pass_results):
+                iterations += sum(r.iterations for r in pass_results)
+            else:
+                iterations = -1  # the NLP solvers do not report iterations
             if not ok:
                 if it == 0:
                     success, status, results = False, why, pass_results
@@ -418,8 +473,14 @@ class HierarchicalSolver:
         q, nu, u = program.layout.Split(z)
         kin = program.robot.CalcKinematics(q)
         return MpcSolution(
-            z=z, q=q, nu=nu, u=u, p_WE=np.asarray(kin.p_WE),
-            success=success, status=status, stages=results,
+            z=z,
+            q=q,
+            nu=nu,
+            u=u,
+            p_WE=np.asarray(kin.p_WE),
+            success=success,
+            status=status,
+            stages=results,
             solve_time=time.perf_counter() - start,
             iterations=int(iterations),
         )
@@ -430,15 +491,20 @@ class HierarchicalSolver:
         lex_bounds: dict = {}
         results: list[StageResult] = []
         z = point.z
-        for stage, solver in zip(self.stages, self._solvers):
-            result = solver.Solve(point, lower=lower, upper=upper,
-                                  lex_bounds=lex_bounds,
-                                  linearizations=linearizations)
+        for stage, solver in zip(self.stages, self._solvers, strict=True):
+            result = solver.Solve(
+                point,
+                lower=lower,
+                upper=upper,
+                lex_bounds=lex_bounds,
+                linearizations=linearizations,
+            )
             results.append(result)
             if not result.success:
                 return z, False, f"stage '{stage.name}': {result.status}", results
             z = result.z
             for task, _ in stage.cost_tasks:
-                lex_bounds[task.name] = (np.abs(result.errors[task.name]).ravel()
-                                         + self.tolerance)
+                lex_bounds[task.name] = (
+                    np.abs(result.errors[task.name]).ravel() + self.tolerance
+                )
         return z, True, "solved", results

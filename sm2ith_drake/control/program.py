@@ -23,7 +23,6 @@ import numpy as np
 from sm2ith_drake.control.tasks import Task
 from sm2ith_drake.geometry import capsule_distance_and_gradient
 
-
 # Exact-penalty weights of constraint slacks (large against task costs of
 # order 1 per metre of error).
 SLACK_LINEAR_WEIGHT = 1e3
@@ -93,7 +92,7 @@ class ConstraintGroup:
 def _BlockPattern(row_blocks, col_blocks):
     """Pattern of dense blocks: row_blocks[i] × col_blocks[i] (index arrays)."""
     rows, cols = [], []
-    for r, c in zip(row_blocks, col_blocks):
+    for r, c in zip(row_blocks, col_blocks, strict=True):
         rr, cc = np.meshgrid(r, c, indexing="ij")
         rows.append(rr.ravel())
         cols.append(cc.ravel())
@@ -129,15 +128,26 @@ class DynamicsGroup(ConstraintGroup):
         for k in range(N):
             qr = self._q_rows[k]
             row_blocks += [qr, qr]
-            col_blocks += [layout.q[k], np.concatenate([layout.nu[k], layout.nu[k + 1]])]
+            col_blocks += [
+                layout.q[k],
+                np.concatenate([layout.nu[k], layout.nu[k + 1]]),
+            ]
         base_rows, base_cols = _BlockPattern(row_blocks, col_blocks)
         diag_rows = np.concatenate(
-            [self._q_rows.ravel(), self._nu_rows.ravel(), self._nu_rows.ravel(),
-             self._nu_rows.ravel()]
+            [
+                self._q_rows.ravel(),
+                self._nu_rows.ravel(),
+                self._nu_rows.ravel(),
+                self._nu_rows.ravel(),
+            ]
         )
         diag_cols = np.concatenate(
-            [layout.q[1:].ravel(), layout.nu[1:].ravel(), layout.nu[:-1].ravel(),
-             layout.u.ravel()]
+            [
+                layout.q[1:].ravel(),
+                layout.nu[1:].ravel(),
+                layout.nu[:-1].ravel(),
+                layout.u.ravel(),
+            ]
         )
         self.rows = np.concatenate([base_rows, diag_rows])
         self.cols = np.concatenate([base_cols, diag_cols])
@@ -227,7 +237,8 @@ class SelfCollisionGroup(ConstraintGroup):
         row_blocks = [k * P + np.array([p]) for k in range(N) for p in range(P)]
         col_blocks = [
             np.concatenate([layout.q[k + 1], [self.slack[k, p]]])
-            for k in range(N) for p in range(P)
+            for k in range(N)
+            for p in range(P)
         ]
         if P:
             self.rows, self.cols = _BlockPattern(row_blocks, col_blocks)
@@ -246,9 +257,17 @@ class SelfCollisionGroup(ConstraintGroup):
 class MpcProgram:
     """The groups and bounds shared by every stage of the hierarchy."""
 
-    def __init__(self, *, robot, tasks: list[Task], horizon: int, time_step: float,
-                 self_collision_distance: float, effort_weight_nu: float,
-                 effort_weight_u: float):
+    def __init__(
+        self,
+        *,
+        robot,
+        tasks: list[Task],
+        horizon: int,
+        time_step: float,
+        self_collision_distance: float,
+        effort_weight_nu: float,
+        effort_weight_u: float,
+    ):
         self.robot = robot
         self.tasks = list(tasks)
         self.time_step = time_step
@@ -264,7 +283,9 @@ class MpcProgram:
         self.task_groups = {t.name: TaskErrorGroup(t, L) for t in self.tasks}
         # Extra groups from predictors / safety constraints (later issues):
         # list of (group, lower, upper) with mutable bound arrays.
-        self.extra_constraints: list[tuple[ConstraintGroup, np.ndarray, np.ndarray]] = []
+        self.extra_constraints: list[
+            tuple[ConstraintGroup, np.ndarray, np.ndarray]
+        ] = []
         # Effort J_eff = ½ Σ w_ν‖ν_k‖² (k=1..N) + w_u‖u_k‖² (k=0..N-1).
         self.effort_diagonal = np.zeros(L.num_variables)
         self.effort_diagonal[L.nu[1:].ravel()] = effort_weight_nu
@@ -312,8 +333,9 @@ class MpcProgram:
         for k in range(L.N):
             uk = np.clip(u[k], robot.nudot_lower, robot.nudot_upper)
             nu_next = np.clip(nu + dt * uk, robot.nu_lower, robot.nu_upper)
-            q = np.clip(q + 0.5 * dt * robot.G(q) @ (nu + nu_next), robot.q_lower,
-                        robot.q_upper)
+            q = np.clip(
+                q + 0.5 * dt * robot.G(q) @ (nu + nu_next), robot.q_lower, robot.q_upper
+            )
             nu = nu_next
             uk = (nu - z[L.nu[k]]) / dt
             z[L.u[k]], z[L.q[k + 1]], z[L.nu[k + 1]] = uk, q, nu
@@ -322,11 +344,19 @@ class MpcProgram:
     def ConstraintGroups(self) -> list[tuple[ConstraintGroup, np.ndarray, np.ndarray]]:
         """The (group, lower, upper) rows every stage shares."""
         out = [
-            (self.dynamics, np.zeros(self.dynamics.num_rows),
-             np.zeros(self.dynamics.num_rows)),
+            (
+                self.dynamics,
+                np.zeros(self.dynamics.num_rows),
+                np.zeros(self.dynamics.num_rows),
+            ),
         ]
         if self.self_collision.num_rows:
             nr = self.self_collision.num_rows
-            out.append((self.self_collision,
-                        np.full(nr, self.self_collision_distance), np.full(nr, np.inf)))
+            out.append(
+                (
+                    self.self_collision,
+                    np.full(nr, self.self_collision_distance),
+                    np.full(nr, np.inf),
+                )
+            )
         return out + list(self.extra_constraints)

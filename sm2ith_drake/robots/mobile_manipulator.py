@@ -32,7 +32,7 @@ from pydrake.multibody.tree import (
 )
 
 from sm2ith_drake.resources import GetModelsDir
-from sm2ith_drake.robots.models import BASE_KINDS, MODELS, RobotModel
+from sm2ith_drake.robots.models import BASE_KINDS, MODELS
 
 _WELD, _REVOLUTE, _PRISMATIC, _PLANAR = range(4)
 
@@ -264,8 +264,7 @@ class MobileManipulator:
         ba = np.asarray(model.base_acceleration_limit, dtype=float)
         if bv.size != nb or ba.size != nb:
             raise ValueError(
-                f"a {model.base_kind} base needs {nb} velocity and acceleration "
-                "limits"
+                f"a {model.base_kind} base needs {nb} velocity and acceleration limits"
             )
         inf3 = np.full(3, np.inf)
         self.q_lower = np.concatenate([-inf3, lower])

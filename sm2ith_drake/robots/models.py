@@ -72,8 +72,9 @@ STRETCH3 = RobotModel(
         Capsule("base", "base_link", (-0.12, 0.0, 0.11), (0.0, 0.0, 0.11), 0.17),
         Capsule("mast", "base_link", (-0.17, 0.12, 0.25), (-0.17, 0.12, 1.35), 0.06),
         Capsule("arm", "link_arm", (0.0, 0.0, 0.0), (0.0, 0.5, 0.0), 0.03),
-        Capsule("gripper", "link_wrist_pitch", (0.0, -0.05, 0.0), (0.0, -0.19, 0.0),
-                0.045),
+        Capsule(
+            "gripper", "link_wrist_pitch", (0.0, -0.05, 0.0), (0.0, -0.19, 0.0), 0.045
+        ),
     ],
     self_collision_pairs=[("gripper", "base"), ("gripper", "mast")],
     base_radius=0.25,
@@ -102,10 +103,12 @@ RIDGEBACK_UR10 = RobotModel(
     capsules=[
         Capsule("base", "base_link", (-0.2, 0.0, 0.15), (0.2, 0.0, 0.15), 0.42),
         Capsule("mount", "base_link", (0.27, 0.0, 0.3), (0.27, 0.0, 0.7), 0.11),
-        Capsule("upper_arm", "upper_arm_link", (0.0, 0.0, 0.176), (-0.612, 0.0, 0.176),
-                0.07),
-        Capsule("forearm", "forearm_link", (0.0, 0.0, 0.045), (-0.5723, 0.0, 0.045),
-                0.055),
+        Capsule(
+            "upper_arm", "upper_arm_link", (0.0, 0.0, 0.176), (-0.612, 0.0, 0.176), 0.07
+        ),
+        Capsule(
+            "forearm", "forearm_link", (0.0, 0.0, 0.045), (-0.5723, 0.0, 0.045), 0.055
+        ),
         Capsule("wrist", "wrist_2_link", (0.0, 0.0, -0.06), (0.0, 0.0, 0.06), 0.06),
         Capsule("gripper", "wrist_3_link", (0.0, 0.0, 0.0), (0.0, 0.0, 0.15), 0.07),
     ],

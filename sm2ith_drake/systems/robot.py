@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
-from pydrake.systems.framework import BasicVector, LeafSystem
+from pydrake.systems.framework import LeafSystem
 
 
 class KinematicRobot(LeafSystem):

@@ -31,14 +31,17 @@ class PlanVisualizer(LeafSystem):
     (so they animate in a Meshcat recording, unlike line geometry).
     """
 
-    def __init__(self, meshcat, tasks, *, horizon: int, period: float,
-                 prefix: str = "sm2ith"):
+    def __init__(
+        self, meshcat, tasks, *, horizon: int, period: float, prefix: str = "sm2ith"
+    ):
         super().__init__()
         self._meshcat = meshcat
         self._tasks = list(tasks)
         self._N = horizon
         self._prefix = prefix
-        self._plan = self.DeclareAbstractInputPort("plan", AbstractValue.Make(PlanMessage()))
+        self._plan = self.DeclareAbstractInputPort(
+            "plan", AbstractValue.Make(PlanMessage())
+        )
         self._refs = self.DeclareAbstractInputPort(
             "task_references", AbstractValue.Make(TaskReferences())
         )
@@ -48,10 +51,13 @@ class PlanVisualizer(LeafSystem):
         for task in self._tasks:
             name = type(task).__name__
             if name == "EePosition":
-                meshcat.SetObject(self._Path("targets", task.name), Sphere(0.06), TARGET)
+                meshcat.SetObject(
+                    self._Path("targets", task.name), Sphere(0.06), TARGET
+                )
             elif name in ("BasePosition", "BasePose"):
-                meshcat.SetObject(self._Path("targets", task.name),
-                                  Cylinder(0.15, 0.01), TARGET)
+                meshcat.SetObject(
+                    self._Path("targets", task.name), Cylinder(0.15, 0.01), TARGET
+                )
         self.DeclarePeriodicPublishEvent(period, 0.0, self._Draw)
         self.DeclareForcedPublishEvent(self._Draw)
 
@@ -68,17 +74,23 @@ class PlanVisualizer(LeafSystem):
                 target = target[0]
             name = type(task).__name__
             if name == "EePosition":
-                meshcat.SetTransform(self._Path("targets", task.name),
-                                     RigidTransform(target), t)
+                meshcat.SetTransform(
+                    self._Path("targets", task.name), RigidTransform(target), t
+                )
             elif name in ("BasePosition", "BasePose"):
-                meshcat.SetTransform(self._Path("targets", task.name),
-                                     RigidTransform([target[0], target[1], 0.005]), t)
+                meshcat.SetTransform(
+                    self._Path("targets", task.name),
+                    RigidTransform([target[0], target[1], 0.005]),
+                    t,
+                )
         plan = self._plan.Eval(context).solution
         if plan is None:
             return
         for k in range(min(self._N + 1, len(plan.q))):
             x, y = plan.q[k, 0], plan.q[k, 1]
-            meshcat.SetTransform(self._Path("base_plan", k),
-                                 RigidTransform([x, y, 0.03]), t)
-            meshcat.SetTransform(self._Path("ee_plan", k),
-                                 RigidTransform(plan.p_WE[k]), t)
+            meshcat.SetTransform(
+                self._Path("base_plan", k), RigidTransform([x, y, 0.03]), t
+            )
+            meshcat.SetTransform(
+                self._Path("ee_plan", k), RigidTransform(plan.p_WE[k]), t
+            )
