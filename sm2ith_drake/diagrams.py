@@ -19,14 +19,16 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import MatrixGain
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 
+from sm2ith_drake.control.cbf import ObstacleSegments
 from sm2ith_drake.control.tasks import BasePose, BasePosition, EePosition, MakeTask
 from sm2ith_drake.robots import MobileManipulator
 from sm2ith_drake.scenario import ControlPeriod, Scenario, ValidateScenario
 from sm2ith_drake.systems.controller import HierarchicalMpc
+from sm2ith_drake.systems.humans import CrowdSimulator, HumanEstimator, MocapSensor
 from sm2ith_drake.systems.logger import RunLogger
 from sm2ith_drake.systems.planner import TaskPlanner
 from sm2ith_drake.systems.robot import KinematicRobot
-from sm2ith_drake.systems.visualization import PlanVisualizer
+from sm2ith_drake.systems.visualization import HumanVisualizer, PlanVisualizer
 
 
 def MakeRobot(scenario: Scenario) -> MobileManipulator:
@@ -73,10 +75,43 @@ def MakeSimulation(
         ),
     )
     planner = builder.AddNamedSystem("planner", TaskPlanner(tasks, num_states=n + m))
+    has_humans = bool(scenario.humans)
+    segments = ObstacleSegments(scenario.obstacles)
     controller = builder.AddNamedSystem(
-        "controller", HierarchicalMpc(robot, tasks, scenario.controller)
+        "controller",
+        HierarchicalMpc(
+            robot,
+            tasks,
+            scenario.controller,
+            prediction=scenario.prediction if has_humans else None,
+            safety=scenario.safety,
+            obstacles=scenario.obstacles,
+        ),
     )
-    logger = builder.AddNamedSystem("logger", RunLogger(robot, tasks, period=period))
+    logger = builder.AddNamedSystem(
+        "logger",
+        # With humans, sample faster than the control rate so brief close
+        # approaches are not missed by the safety metrics.
+        RunLogger(
+            robot,
+            tasks,
+            period=min(period, 0.05) if has_humans else period,
+            with_humans=has_humans,
+        ),
+    )
+    crowd = None
+    if has_humans:
+        crowd, _, estimator = _AddHumans(builder, scenario, robot, segments)
+        builder.Connect(
+            sim_robot.GetOutputPort("state"), crowd.GetInputPort("robot_state")
+        )
+        builder.Connect(
+            estimator.GetOutputPort("human_estimate"),
+            controller.GetInputPort("human_estimate"),
+        )
+        builder.Connect(
+            crowd.GetOutputPort("human_truth"), logger.GetInputPort("human_truth")
+        )
     builder.Connect(
         sim_robot.GetOutputPort("state"), planner.GetInputPort("robot_state")
     )
@@ -135,9 +170,67 @@ def MakeSimulation(
                 planner.GetOutputPort("task_references"),
                 vis.GetInputPort("task_references"),
             )
+        if has_humans or scenario.obstacles:
+            hv = builder.AddNamedSystem(
+                "human_visualizer",
+                HumanVisualizer(
+                    meshcat,
+                    scenario.humans,
+                    scenario.obstacles,
+                    horizon=scenario.controller.horizon,
+                    max_humans=scenario.prediction.max_humans if has_humans else 0,
+                    period=scenario.visualization.publish_period,
+                ),
+            )
+            builder.Connect(controller.GetOutputPort("plan"), hv.GetInputPort("plan"))
+            if crowd is not None:
+                builder.Connect(
+                    crowd.GetOutputPort("human_truth"), hv.GetInputPort("human_truth")
+                )
     diagram = builder.Build()
     diagram.set_name(f"sm2ith_{robot.name}")
     return diagram
+
+
+def _AddHumans(builder, scenario, robot, segments):
+    """CrowdSimulator → MocapSensor → HumanEstimator."""
+    pc = scenario.perception
+    crowd = builder.AddNamedSystem(
+        "crowd",
+        CrowdSimulator(
+            robot,
+            scenario.humans,
+            obstacle_segments=segments,
+            time_step=scenario.crowd_time_step,
+            tau=scenario.prediction.tau,
+            tau_obs=scenario.prediction.tau_obs,
+        ),
+    )
+    sensor = builder.AddNamedSystem(
+        "mocap",
+        MocapSensor(
+            period=pc.period,
+            noise=pc.noise,
+            dropout_probability=pc.dropout_probability,
+            seed=scenario.random_seed,
+        ),
+    )
+    estimator = builder.AddNamedSystem(
+        "human_estimator",
+        HumanEstimator(
+            period=pc.period,
+            measurement_noise=pc.noise,
+            acceleration_noise=pc.acceleration_noise,
+            track_timeout=pc.track_timeout,
+        ),
+    )
+    builder.Connect(
+        crowd.GetOutputPort("human_truth"), sensor.GetInputPort("human_truth")
+    )
+    builder.Connect(
+        sensor.GetOutputPort("detections"), estimator.GetInputPort("detections")
+    )
+    return crowd, sensor, estimator
 
 
 def _FrameScene(meshcat: Meshcat, q0, tasks) -> None:
@@ -223,5 +316,9 @@ def RunSimulation(
         Path(html_path).parent.mkdir(parents=True, exist_ok=True)
         Path(html_path).write_text(meshcat.StaticHtml())
         saved = str(html_path)
-    metrics = SummarizeRun(log, controller.controller.robot)
+    metrics = SummarizeRun(
+        log,
+        controller.controller.robot,
+        human_radii=[h.radius for h in scenario.humans] if scenario.humans else None,
+    )
     return RunResult(log=log, metrics=metrics, diagram=diagram, html_path=saved)

@@ -101,6 +101,93 @@ class ControllerConfig:
     max_fallback_steps: int = 3
 
 
+HUMAN_BEHAVIORS = ("orca", "social_force", "scripted", "adversarial")
+PREDICTORS = ("orca_kkt", "cvmm", "react")
+
+
+@dataclass
+class HumanConfig:
+    """One simulated person (a vertical cylinder walking in the plane)."""
+
+    # orca: walks its waypoints with ORCA, reacting to the robot base and the
+    # others; social_force: Helbing's social force model; scripted: follows
+    # its waypoints at its speed and ignores everyone; adversarial: walks
+    # straight at the robot base.
+    behavior: str = "orca"
+    start: list[float] = field(default_factory=lambda: [0.0, 0.0])
+    # Goals in order; the human stays at the last (or loops).
+    waypoints: list[list[float]] = field(default_factory=list)
+    loop: bool = False
+    # Preferred walking speed (m/s) and the cylinder radius (m).
+    speed: float = 1.0
+    radius: float = 0.3
+    # The human stands still until this time (s).
+    start_time: float = 0.0
+
+
+@dataclass
+class ObstacleConfig:
+    """A static obstacle: a wall segment (2 vertices) or a closed polygon
+    (≥ 3 vertices, counter-clockwise), extruded to ``height``."""
+
+    vertices: list[list[float]] = field(default_factory=list)
+    height: float = 1.0
+
+
+@dataclass
+class PredictionConfig:
+    """How the controller predicts the humans (Section IV.B)."""
+
+    # orca_kkt: SM²ITH, the relaxed-ORCA QP of every human embedded through
+    # its KKT conditions; cvmm: constant velocity, fixed before each solve;
+    # react: humans held at their current positions.
+    predictor: str = "orca_kkt"
+    # ORCA time horizons for agents and static obstacles (s).
+    tau: float = 2.0
+    tau_obs: float = 0.5
+    # Share of the avoidance a human takes toward the robot (0.5: reciprocal).
+    robot_share: float = 0.5
+    # Human limits in the prediction model.
+    max_speed: float = 1.5
+    max_acceleration: float = 2.0
+    # Slack penalties M of the relaxed ORCA QP (acceleration, half-planes).
+    slack_weight_acceleration: float = 10.0
+    slack_weight_velocity: float = 100.0
+    # Complementarity relaxation λᵢ cᵢ ≥ −ε of the KKT embedding.
+    complementarity_relaxation: float = 1e-3
+    # Maximum number of humans the controller tracks (the program's size).
+    max_humans: int = 3
+
+
+@dataclass
+class SafetyConfig:
+    """DT-CBF collision avoidance (eq. smith_avoid_coll)."""
+
+    # h(x_{k+1}) ≥ (1 − γ) h(x_k), γ ∈ (0, 1].
+    gamma: float = 0.3
+    # Extra clearance to humans and static obstacles (m).
+    human_margin: float = 0.1
+    obstacle_margin: float = 0.05
+    # Radius the controller assumes for a tracked human (m).
+    human_radius: float = 0.3
+
+
+@dataclass
+class PerceptionConfig:
+    """The simulated motion-capture of the humans."""
+
+    # Standard deviation of the position noise (m).
+    noise: float = 0.01
+    # Probability that a detection is missing in a frame.
+    dropout_probability: float = 0.0
+    # Detection period (s).
+    period: float = 0.05
+    # Kalman filter: white acceleration noise (m/s²) and the time after
+    # which an unseen track is dropped (s).
+    acceleration_noise: float = 2.0
+    track_timeout: float = 1.0
+
+
 @dataclass
 class VisualizationConfig:
     """What Meshcat shows."""
@@ -122,10 +209,16 @@ class Scenario:
     simulator_config: SimulatorConfig = field(
         default_factory=lambda: SimulatorConfig(target_realtime_rate=0.0)
     )
-    # Integration step of the simulated robot (s).
+    # Integration step of the simulated robot and of the crowd (s).
     robot_time_step: float = 0.01
+    crowd_time_step: float = 0.05
     visualization: VisualizationConfig = field(default_factory=VisualizationConfig)
     random_seed: int = 0
+    humans: list[HumanConfig] = field(default_factory=list)
+    obstacles: list[ObstacleConfig] = field(default_factory=list)
+    prediction: PredictionConfig = field(default_factory=PredictionConfig)
+    safety: SafetyConfig = field(default_factory=SafetyConfig)
+    perception: PerceptionConfig = field(default_factory=PerceptionConfig)
 
 
 class ScenarioError(ValueError):
@@ -201,6 +294,34 @@ def ValidateScenario(scenario: Scenario) -> None:
         )
     if not scenario.tasks:
         raise ScenarioError("a scenario needs at least one task")
+    for i, h in enumerate(scenario.humans):
+        if h.behavior not in HUMAN_BEHAVIORS:
+            raise ScenarioError(
+                f"humans[{i}].behavior '{h.behavior}'; "
+                f"valid: {', '.join(HUMAN_BEHAVIORS)}"
+            )
+        if len(h.start) != 2 or any(len(w) != 2 for w in h.waypoints):
+            raise ScenarioError(f"humans[{i}]: start and waypoints are [x, y] pairs")
+        if h.speed < 0 or h.radius <= 0:
+            raise ScenarioError(f"humans[{i}]: speed ≥ 0 and radius > 0 needed")
+    for i, o in enumerate(scenario.obstacles):
+        if len(o.vertices) < 2 or any(len(v) != 2 for v in o.vertices):
+            raise ScenarioError(f"obstacles[{i}]: at least two [x, y] vertices")
+    pr = scenario.prediction
+    if pr.predictor not in PREDICTORS:
+        raise ScenarioError(
+            f"prediction.predictor '{pr.predictor}'; valid: {', '.join(PREDICTORS)}"
+        )
+    if pr.max_humans < len(scenario.humans) and scenario.humans:
+        raise ScenarioError(
+            f"prediction.max_humans ({pr.max_humans}) < number of humans "
+            f"({len(scenario.humans)})"
+        )
+    if not 0 < scenario.safety.gamma <= 1:
+        raise ScenarioError("safety.gamma must be in (0, 1]")
+    pc = scenario.perception
+    if pc.noise < 0 or not 0 <= pc.dropout_probability < 1 or pc.period <= 0:
+        raise ScenarioError("perception: noise ≥ 0, dropout in [0, 1), period > 0")
     names = [t.name or t.kind for t in scenario.tasks]
     if len(set(names)) != len(names):
         raise ScenarioError(f"task names must be unique (set name:): {names}")

@@ -73,7 +73,22 @@ def BrakingAcceleration(robot, nu: np.ndarray, period: float) -> np.ndarray:
 class MpcController:
     """The plain-Python controller behind the HierarchicalMpc LeafSystem."""
 
-    def __init__(self, robot, tasks, config: ControllerConfig):
+    def __init__(
+        self,
+        robot,
+        tasks,
+        config: ControllerConfig,
+        *,
+        prediction=None,
+        safety=None,
+        obstacles=(),
+    ):
+        """``prediction`` (a PredictionConfig) adds ``max_humans`` human slots
+        with its predictor and the DT-CBF constraints of ``safety``;
+        ``obstacles`` (ObstacleConfigs) add static DT-CBF constraints."""
+        from sm2ith_drake.control.cbf import ObstacleSegments
+        from sm2ith_drake.humans.predictors import MakePredictor
+
         self.robot = robot
         self.config = config
         self.tasks = [
@@ -83,6 +98,16 @@ class MpcController:
         names = [t.name for t in self.tasks]
         if len(set(names)) != len(names):
             raise ValueError(f"task names must be unique: {names}")
+        segments = ObstacleSegments(obstacles)
+        self.predictor = None
+        if prediction is not None:
+            self.predictor = MakePredictor(
+                prediction,
+                horizon=config.horizon,
+                time_step=config.time_step,
+                robot=robot,
+                obstacles=segments,
+            )
         self.program = MpcProgram(
             robot=robot,
             tasks=self.tasks,
@@ -91,6 +116,9 @@ class MpcController:
             self_collision_distance=config.self_collision_distance,
             effort_weight_nu=config.effort_weight_nu,
             effort_weight_u=config.effort_weight_u,
+            predictor=self.predictor,
+            safety=safety,
+            obstacle_segments=segments,
         )
         self.solver = HierarchicalSolver(
             self.program,
@@ -114,12 +142,24 @@ class MpcController:
             u[: len(prev)] = prev
             if len(prev) and len(prev) < N:
                 u[len(prev) :] = 0.0
-        return self.program.Rollout(q0, nu0, u)
+        z = self.program.Rollout(q0, nu0, u)
+        if self.predictor is not None:
+            self.predictor.WarmStart(z, previous=state.plan, shift=self.shift)
+        return z
 
     def Step(
-        self, state: ControllerState, *, time_now: float, q0, nu0, targets: dict
+        self,
+        state: ControllerState,
+        *,
+        time_now: float,
+        q0,
+        nu0,
+        targets: dict,
+        humans=None,
     ) -> ControllerState:
-        """Computes the next command; returns the new state (input unchanged)."""
+        """Computes the next command; returns the new state (input unchanged).
+
+        ``humans`` is a HumanEstimate (ignored without a predictor)."""
         start = time.perf_counter()
         q0 = np.asarray(q0, dtype=float)
         nu0 = np.asarray(nu0, dtype=float)
@@ -128,6 +168,8 @@ class MpcController:
         new.counters.steps += 1
         record = StepRecord(time=time_now)
         solution = None
+        if self.predictor is not None:
+            self.predictor.SetHumans(humans)
         if np.all(np.isfinite(q0)) and np.all(np.isfinite(nu0)):
             try:
                 solution = self.solver.Solve(

@@ -77,6 +77,10 @@ class MpcSolution:
     stages: list[StageResult]
     solve_time: float
     iterations: int
+    # Predicted human positions (N+1, H, 2) and the human id of each slot
+    # (−1: empty), when the program has a predictor.
+    human_predictions: np.ndarray | None = None
+    human_slot_ids: np.ndarray | None = None
 
 
 class _Qp:
@@ -472,7 +476,10 @@ class HierarchicalSolver:
             z, results = z_pass, pass_results
         q, nu, u = program.layout.Split(z)
         kin = program.robot.CalcKinematics(q)
+        predictor = program.predictor
         return MpcSolution(
+            human_predictions=None if predictor is None else predictor.Predictions(z),
+            human_slot_ids=None if predictor is None else predictor.slot_ids,
             z=z,
             q=q,
             nu=nu,

@@ -27,6 +27,7 @@ from sm2ith_drake.geometry import capsule_distance_and_gradient
 # order 1 per metre of error).
 SLACK_LINEAR_WEIGHT = 1e3
 SLACK_QUADRATIC_WEIGHT = 1e4
+CBF_SLACK_LINEAR_WEIGHT = 1e4
 
 
 class VariableLayout:
@@ -267,7 +268,13 @@ class MpcProgram:
         self_collision_distance: float,
         effort_weight_nu: float,
         effort_weight_u: float,
+        predictor=None,
+        safety=None,
+        obstacle_segments=None,
     ):
+        """``predictor`` (humans/predictors.py) adds the human variables and
+        its constraints; with humans or ``obstacle_segments`` (S, 2, 2), the
+        DT-CBF constraints of ``safety`` (a SafetyConfig) are added."""
         self.robot = robot
         self.tasks = list(tasks)
         self.time_step = time_step
@@ -281,11 +288,43 @@ class MpcProgram:
         self.self_collision = SelfCollisionGroup(robot, L)
         self.self_collision_distance = self_collision_distance
         self.task_groups = {t.name: TaskErrorGroup(t, L) for t in self.tasks}
-        # Extra groups from predictors / safety constraints (later issues):
-        # list of (group, lower, upper) with mutable bound arrays.
+        # Extra groups from the human predictor and the DT-CBF safety
+        # constraints: (group, lower, upper).
         self.extra_constraints: list[
             tuple[ConstraintGroup, np.ndarray, np.ndarray]
         ] = []
+        self.predictor = predictor
+        self.cbf = None
+        segments = (
+            np.zeros((0, 2, 2))
+            if obstacle_segments is None
+            else np.asarray(obstacle_segments, dtype=float).reshape(-1, 2, 2)
+        )
+        if predictor is not None:
+            predictor.AddVariables(L)
+            self.extra_constraints += predictor.ConstraintGroups(self)
+        if (predictor is not None and predictor.H) or len(segments):
+            from sm2ith_drake.control.cbf import DtCbfGroup
+            from sm2ith_drake.scenario import SafetyConfig
+
+            safety = safety or SafetyConfig()
+            positions = (
+                predictor.p
+                if predictor is not None
+                else np.zeros((L.N + 1, 0, 2), dtype=int)
+            )
+            self.cbf = DtCbfGroup(
+                robot,
+                L,
+                positions,
+                gamma=safety.gamma,
+                human_radius=safety.human_radius,
+                human_margin=safety.human_margin,
+                obstacle_segments=segments,
+                obstacle_margin=safety.obstacle_margin,
+            )
+            nr = self.cbf.num_rows
+            self.extra_constraints.append((self.cbf, np.zeros(nr), np.full(nr, np.inf)))
         # Effort J_eff = ½ Σ w_ν‖ν_k‖² (k=1..N) + w_u‖u_k‖² (k=0..N-1).
         self.effort_diagonal = np.zeros(L.num_variables)
         self.effort_diagonal[L.nu[1:].ravel()] = effort_weight_nu
@@ -304,8 +343,14 @@ class MpcProgram:
         lower[L.u] = robot.nudot_lower
         upper[L.u] = robot.nudot_upper
         lower[self.self_collision.slack.ravel()] = 0.0
+        if self.cbf is not None:
+            self.effort_diagonal[self.cbf.slack] = SLACK_QUADRATIC_WEIGHT
+            self.linear_cost[self.cbf.slack] = CBF_SLACK_LINEAR_WEIGHT
+            lower[self.cbf.slack] = 0.0
         self.variable_lower = lower
         self.variable_upper = upper
+        if predictor is not None and hasattr(predictor, "SetUpCosts"):
+            predictor.SetUpCosts(self)
 
     def VariableBounds(self, q0: np.ndarray, nu0: np.ndarray):
         """Variable bounds with the initial condition (eq. htmpc_init) pinned."""
@@ -316,6 +361,8 @@ class MpcProgram:
         # The measured ν may sit marginally outside its limits; pinning it is
         # still consistent because only ν_1.. are bounded by the limits.
         lower[L.nu[0]] = upper[L.nu[0]] = nu0
+        if self.predictor is not None:
+            self.predictor.ApplyBounds(lower, upper)
         return lower, upper
 
     def MakePoint(self, z: np.ndarray, targets: dict) -> LinearizationPoint:

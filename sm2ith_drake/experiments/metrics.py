@@ -24,8 +24,50 @@ def LimitViolations(log, robot) -> int:
     return int(bad.sum())
 
 
-def SummarizeRun(log, robot) -> dict:
-    """Final and mean task errors, limit violations, solver time, fallbacks."""
+# Hall's intimate space: 0.45 m from a human's centre (Section V).
+INTIMATE_DISTANCE = 0.45
+
+
+def HumanDistances(robot, states, human_positions) -> np.ndarray:
+    """(T, H) horizontal distance from each human's centre to the nearest
+    robot body (every capsule's surface: the base and every arm link)."""
+    from sm2ith_drake.control.cbf import point_segment_distance_2d
+
+    x = np.asarray(states)
+    P = np.asarray(human_positions, dtype=float)  # (T, H, 2)
+    if P.size == 0:
+        return np.zeros((len(x), 0))
+    kin = robot.CalcKinematics(x[:, : robot.num_positions])
+    ends = kin.capsule_points[..., :2]  # (T, C, 2, 2)
+    d, _, _ = point_segment_distance_2d(
+        ends[:, None, :, 0], ends[:, None, :, 1], P[:, :, None, :]
+    )  # (T, H, C)
+    return np.min(d - robot.capsule_radii[None, None, :], axis=2)
+
+
+def HumanMetrics(log, robot, human_radii) -> dict:
+    """Safety and proxemics against the true human positions."""
+    if not log.human_positions:
+        return {}
+    dist = HumanDistances(robot, log.states, log.human_positions)  # (T, H)
+    radii = np.asarray(human_radii, dtype=float)[None, :]
+    gap = dist - radii  # robot surface to human surface
+    times = np.asarray(log.times)
+    dt = np.diff(
+        times, append=times[-1] + (times[-1] - times[-2] if len(times) > 1 else 0.0)
+    )
+    inside = np.any(dist < INTIMATE_DISTANCE, axis=1)
+    return {
+        "min_human_gap": float(gap.min()),
+        "mean_human_distance": float(dist.mean()),
+        "collision_samples": int(np.sum(np.any(gap < 0, axis=1))),
+        "intimate_space_time": float(np.sum(dt[inside])),
+    }
+
+
+def SummarizeRun(log, robot, human_radii=None) -> dict:
+    """Final and mean task errors, limit violations, solver time, fallbacks,
+    and with humans the safety and proxemics figures."""
     out: dict = {"samples": len(log.times)}
     for name, errors in log.task_errors.items():
         norms = np.linalg.norm(np.asarray(errors), axis=1)
@@ -44,6 +86,8 @@ def SummarizeRun(log, robot) -> dict:
         out["solver_failures"] = c.solver_failures
         out["fallbacks"] = c.fallbacks
         out["braking_fallbacks"] = c.braking_fallbacks
+    if human_radii is not None:
+        out.update(HumanMetrics(log, robot, human_radii))
     return out
 
 

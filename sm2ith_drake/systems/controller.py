@@ -34,6 +34,7 @@ class HierarchicalMpc(LeafSystem):
         input_ports:
         - robot_state
         - task_references
+        - human_estimate (with a predictor)
         output_ports:
         - command
         - plan
@@ -44,9 +45,25 @@ class HierarchicalMpc(LeafSystem):
     ControllerState (counters and the last StepRecord).
     """
 
-    def __init__(self, robot, tasks, config: ControllerConfig):
+    def __init__(
+        self,
+        robot,
+        tasks,
+        config: ControllerConfig,
+        *,
+        prediction=None,
+        safety=None,
+        obstacles=(),
+    ):
         super().__init__()
-        self.controller = MpcController(robot, tasks, config)
+        self.controller = MpcController(
+            robot,
+            tasks,
+            config,
+            prediction=prediction,
+            safety=safety,
+            obstacles=obstacles,
+        )
         self._n, self._m = robot.num_positions, robot.num_velocities
         self._robot_state = self.DeclareVectorInputPort(
             "robot_state", self._n + self._m
@@ -54,6 +71,13 @@ class HierarchicalMpc(LeafSystem):
         self._references = self.DeclareAbstractInputPort(
             "task_references", AbstractValue.Make(TaskReferences())
         )
+        self._humans = None
+        if prediction is not None:
+            from sm2ith_drake.humans.predictors import HumanEstimate
+
+            self._humans = self.DeclareAbstractInputPort(
+                "human_estimate", AbstractValue.Make(HumanEstimate())
+            )
         self._state = self.DeclareAbstractState(
             AbstractValue.Make(self.controller.InitialState())
         )
@@ -80,6 +104,7 @@ class HierarchicalMpc(LeafSystem):
             q0=x[: self._n],
             nu0=x[self._n :],
             targets=refs.targets,
+            humans=None if self._humans is None else self._humans.Eval(context),
         )
         state.get_mutable_abstract_state(self._state).set_value(new)
 

@@ -25,6 +25,9 @@ class RunLog:
     # Per control step, the per-stage errors of the solved plan (by stage
     # index then task name), to check the lexicographic invariant.
     stage_errors: list = field(default_factory=list)
+    # True human positions and velocities (H, 2) per sample (with humans).
+    human_positions: list = field(default_factory=list)
+    human_velocities: list = field(default_factory=list)
     counters: object = None
 
 
@@ -42,7 +45,7 @@ class RunLogger(LeafSystem):
     The log lives in the Context (see :meth:`GetLog`).
     """
 
-    def __init__(self, robot, tasks, *, period: float):
+    def __init__(self, robot, tasks, *, period: float, with_humans: bool = False):
         super().__init__()
         self._robot = robot
         self._tasks = list(tasks)
@@ -55,6 +58,13 @@ class RunLogger(LeafSystem):
         self._ctrl = self.DeclareAbstractInputPort(
             "controller_state", AbstractValue.Make(ControllerState())
         )
+        self._humans = None
+        if with_humans:
+            from sm2ith_drake.humans.predictors import HumanEstimate
+
+            self._humans = self.DeclareAbstractInputPort(
+                "human_truth", AbstractValue.Make(HumanEstimate())
+            )
         self._log = self.DeclareAbstractState(AbstractValue.Make(RunLog()))
         self.DeclarePeriodicPublishEvent(period, 0.0, self._Record)
 
@@ -78,6 +88,10 @@ class RunLogger(LeafSystem):
             e, _ = task.CalcErrorAndJacobian(q[None, :], kin, target)
             log.task_errors.setdefault(task.name, []).append(np.asarray(e)[0])
         log.counters = ctrl.counters
+        if self._humans is not None:
+            truth = self._humans.Eval(context)
+            log.human_positions.append(np.array(truth.positions))
+            log.human_velocities.append(np.array(truth.velocities))
         if ctrl.counters.steps == len(log.records):
             return  # no control step since the last sample (the initial one)
         log.records.append(ctrl.record)

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.geometry import Cylinder, Rgba, Sphere
-from pydrake.math import RigidTransform
+from pydrake.geometry import Box, Cylinder, Rgba, Sphere
+from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.framework import LeafSystem
 
 from sm2ith_drake.systems.controller import PlanMessage
@@ -94,3 +94,105 @@ class PlanVisualizer(LeafSystem):
             meshcat.SetTransform(
                 self._Path("ee_plan", k), RigidTransform(plan.p_WE[k]), t
             )
+
+
+GREEN = Rgba(0.1, 0.75, 0.2, 1.0)
+HUMAN = Rgba(0.85, 0.45, 0.35, 0.9)
+OBSTACLE = Rgba(0.55, 0.5, 0.45, 1.0)
+HUMAN_HEIGHT = 1.7
+
+
+class HumanVisualizer(LeafSystem):
+    """Draws the humans (cylinders), their predicted paths (green) and the
+    static obstacles, as in the paper's figures.
+
+    .. pydrake_system::
+
+        name: HumanVisualizer
+        input_ports:
+        - human_truth
+        - plan
+    """
+
+    def __init__(
+        self,
+        meshcat,
+        humans,
+        obstacles,
+        *,
+        horizon: int,
+        max_humans: int,
+        period: float,
+        prefix: str = "sm2ith",
+    ):
+        super().__init__()
+        from sm2ith_drake.humans.predictors import HumanEstimate
+
+        self._meshcat = meshcat
+        self._prefix = prefix
+        self._N = horizon
+        self._H = max_humans
+        self._truth = self.DeclareAbstractInputPort(
+            "human_truth", AbstractValue.Make(HumanEstimate())
+        )
+        self._plan = self.DeclareAbstractInputPort(
+            "plan", AbstractValue.Make(PlanMessage())
+        )
+        for j, h in enumerate(humans):
+            meshcat.SetObject(
+                f"/{prefix}/humans/{j}", Cylinder(h.radius, HUMAN_HEIGHT), HUMAN
+            )
+        for slot in range(max_humans):
+            for k in range(horizon + 1):
+                meshcat.SetObject(self._PredictionPath(slot, k), Sphere(0.04), GREEN)
+        for i, o in enumerate(obstacles):
+            v = np.asarray(o.vertices, dtype=float)
+            edges = (
+                [v]
+                if len(v) == 2
+                else [np.array([v[e], v[(e + 1) % len(v)]]) for e in range(len(v))]
+            )
+            for e, (a, b) in enumerate(edges):
+                length = float(np.linalg.norm(b - a))
+                path = f"/{prefix}/obstacles/{i}/{e}"
+                meshcat.SetObject(
+                    path, Box(max(length, 0.01), 0.05, o.height), OBSTACLE
+                )
+                yaw = np.arctan2(*(b - a)[::-1])
+                mid = 0.5 * (a + b)
+                meshcat.SetTransform(
+                    path,
+                    RigidTransform(
+                        RotationMatrix.MakeZRotation(yaw),
+                        [mid[0], mid[1], o.height / 2],
+                    ),
+                )
+        self.DeclarePeriodicPublishEvent(period, 0.0, self._Draw)
+        self.DeclareForcedPublishEvent(self._Draw)
+
+    def _PredictionPath(self, slot, k):
+        return f"/{self._prefix}/human_predictions/{slot}/{k}"
+
+    def _Draw(self, context):
+        t = context.get_time()
+        meshcat = self._meshcat
+        truth = self._truth.Eval(context) if self._truth.HasValue(context) else None
+        for j, p in (
+            [] if truth is None else zip(truth.ids, truth.positions, strict=True)
+        ):
+            meshcat.SetTransform(
+                f"/{self._prefix}/humans/{j}",
+                RigidTransform([p[0], p[1], HUMAN_HEIGHT / 2]),
+                t,
+            )
+        plan = self._plan.Eval(context).solution
+        if plan is None or plan.human_predictions is None:
+            return
+        for slot in range(min(self._H, plan.human_predictions.shape[1])):
+            active = plan.human_slot_ids[slot] >= 0
+            for k in range(min(self._N + 1, plan.human_predictions.shape[0])):
+                p = plan.human_predictions[k, slot]
+                z = 0.02 if active else -10.0  # hide empty slots below the floor
+                meshcat.SetTransform(
+                    self._PredictionPath(slot, k), RigidTransform([p[0], p[1], z]), t
+                )

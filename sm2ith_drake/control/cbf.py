@@ -1,0 +1,188 @@
+"""Whole-body DT-CBF collision avoidance (eq. smith_avoid_coll).
+
+For every robot capsule c (the base and every arm link) and every human j:
+
+    h_{k,j,c} = dist_xy(capsule c at q_k, human j at p_{k,j}) − r_c − r_h − margin,
+
+the horizontal distance between the capsule's axis projected on the floor and
+the human's centre, so a human is a vertical cylinder taller than the robot
+(conservative for an arm above a head). Static obstacles are wall segments
+(polygons are their edges), treated the same way. The constraints
+
+    h(x_{k+1}) − (1 − γ) h(x_k) ≥ 0,   k = 0 … N − 1,
+
+bound how fast the robot may approach the boundary of the safe set h ≥ 0 and
+keep it forward invariant. The human positions p_{k,j} are decision
+variables: fixed by bounds for the CVMM and React predictors, free (and
+coupled through the ORCA KKT system) for SM²ITH.
+"""
+
+import numpy as np
+
+from sm2ith_drake.control.program import ConstraintGroup, _BlockPattern
+from sm2ith_drake.geometry import segment_closest_points
+
+_EPS = 1e-9
+
+
+def point_segment_distance_2d(A, B, P):
+    """Distances from points P to segments A–B in the plane (arrays (..., 2)).
+
+    Returns (d, s, n): the distance, the closest-point parameter on the
+    segment and the unit vector from P to the closest point.
+    """
+    AB = B - A
+    denom = np.maximum(np.sum(AB * AB, axis=-1), _EPS)
+    s = np.clip(np.sum((P - A) * AB, axis=-1) / denom, 0.0, 1.0)
+    c = A + s[..., None] * AB
+    diff = c - P
+    d = np.linalg.norm(diff, axis=-1)
+    n = diff / np.maximum(d, _EPS)[..., None]
+    return d, s, n
+
+
+def _Lift(x):
+    """Planar points (..., 2) as points on the floor (..., 3)."""
+    return np.concatenate([x, np.zeros(x.shape[:-1] + (1,))], axis=-1)
+
+
+def ObstacleSegments(obstacles) -> np.ndarray:
+    """(S, 2, 2) wall segments of ObstacleConfigs (polygons: every edge)."""
+    segments = []
+    for o in obstacles:
+        v = np.asarray(o.vertices, dtype=float)
+        if len(v) == 2:
+            segments.append(v)
+        else:
+            for i in range(len(v)):
+                segments.append(np.array([v[i], v[(i + 1) % len(v)]]))
+    return np.array(segments).reshape(-1, 2, 2)
+
+
+class DtCbfGroup(ConstraintGroup):
+    """h_{k+1} − (1 − γ) h_k ≥ 0 for robot capsules vs. humans and walls.
+
+    Rows are k-major: for each k, first H × C human rows (human-major), then
+    S × C obstacle rows.
+    """
+
+    name = "dt_cbf"
+
+    def __init__(
+        self,
+        robot,
+        layout,
+        human_positions,
+        *,
+        gamma,
+        human_radius,
+        human_margin,
+        obstacle_segments,
+        obstacle_margin,
+    ):
+        self._robot = robot
+        self._layout = layout
+        N = layout.N
+        self._P = np.asarray(human_positions).reshape(N + 1, -1, 2)
+        H = self._P.shape[1]
+        C = len(robot.capsules)
+        self._segments = np.asarray(obstacle_segments, dtype=float).reshape(-1, 2, 2)
+        S = len(self._segments)
+        self._H, self._C, self._S = H, C, S
+        self.gamma = float(gamma)
+        self._human_offset = robot.capsule_radii[None, :] + human_radius + human_margin
+        self._obstacle_offset = robot.capsule_radii[None, :] + obstacle_margin
+        self.rows_per_step = (H + S) * C
+        self.num_rows = N * self.rows_per_step
+        row_blocks, col_blocks = [], []
+        for k in range(N):
+            base = k * self.rows_per_step
+            for j in range(H):
+                for c in range(C):
+                    row_blocks.append(np.array([base + j * C + c]))
+                    col_blocks.append(
+                        np.concatenate(
+                            [
+                                layout.q[k],
+                                layout.q[k + 1],
+                                self._P[k, j],
+                                self._P[k + 1, j],
+                            ]
+                        )
+                    )
+            for s in range(S):
+                for c in range(C):
+                    row_blocks.append(np.array([base + H * C + s * C + c]))
+                    col_blocks.append(np.concatenate([layout.q[k], layout.q[k + 1]]))
+        # One slack per row under an exact penalty (MpcProgram): zero
+        # whenever the hard constraints can be met; when they cannot (a person
+        # walking into the robot faster than it can get away), the robot does
+        # the best it can instead of losing its plan.
+        self.slack = layout.AddVariables("cbf_slack", (self.num_rows,))
+        if row_blocks:
+            self.rows, self.cols = _BlockPattern(row_blocks, col_blocks)
+            self.rows = np.concatenate([self.rows, np.arange(self.num_rows)])
+            self.cols = np.concatenate([self.cols, self.slack])
+        else:
+            self.rows = self.cols = np.zeros(0, dtype=int)
+
+    def Barriers(self, point):
+        """h at every knot: humans (K, H, C) and obstacles (K, S, C), with
+        their gradients w.r.t. q (K, ·, C, n) and the human positions
+        (K, H, C, 2)."""
+        kin = point.kin
+        ends = kin.capsule_points[..., :2]  # (K, C, 2, 2)
+        jac = kin.capsule_jacobians[..., :2, :]  # (K, C, 2, 2, n)
+        A, B = ends[:, None, :, 0], ends[:, None, :, 1]  # (K, 1, C, 2)
+        P = point.z[self._P][:, :, None, :]  # (K, H, 1, 2)
+        d, s, nrm = point_segment_distance_2d(A, B, P)  # (K, H, C)
+        h_hum = d - self._human_offset
+        JA, JB = jac[:, None, :, 0], jac[:, None, :, 1]  # (K, 1, C, 2, n)
+        Jc = (1 - s)[..., None, None] * JA + s[..., None, None] * JB
+        dh_dq_hum = np.einsum("khci,khcin->khcn", nrm, Jc)
+        dh_dp = -nrm
+        if self._S:
+            W = self._segments  # (S, 2, 2)
+            sa, _, c1, c2 = segment_closest_points(
+                _Lift(A),
+                _Lift(B),
+                _Lift(W[None, :, None, 0]),
+                _Lift(W[None, :, None, 1]),
+            )
+            diff = (c1 - c2)[..., :2]
+            dist = np.linalg.norm(diff, axis=-1)  # (K, S, C)
+            nrm_o = diff / np.maximum(dist, _EPS)[..., None]
+            h_obs = dist - self._obstacle_offset
+            Jo = (1 - sa)[..., None, None] * JA + sa[..., None, None] * JB
+            dh_dq_obs = np.einsum("ksci,kscin->kscn", nrm_o, Jo)
+        else:
+            K, C, n = jac.shape[0], self._C, jac.shape[-1]
+            h_obs = np.zeros((K, 0, C))
+            dh_dq_obs = np.zeros((K, 0, C, n))
+        return h_hum, dh_dq_hum, dh_dp, h_obs, dh_dq_obs
+
+    def Eval(self, point):
+        N = self._layout.N
+        if self.num_rows == 0:
+            return np.zeros(0), np.zeros(0)
+        h_hum, dq_hum, dp, h_obs, dq_obs = self.Barriers(point)
+        a = 1.0 - self.gamma
+        g_hum = h_hum[1:] - a * h_hum[:-1]  # (N, H, C)
+        g_obs = h_obs[1:] - a * h_obs[:-1]  # (N, S, C)
+        g = np.concatenate([g_hum.reshape(N, -1), g_obs.reshape(N, -1)], axis=1)
+        # Jacobian blocks in the pattern's order.
+        hum = np.concatenate(
+            [-a * dq_hum[:-1], dq_hum[1:], -a * dp[:-1], dp[1:]], axis=3
+        )  # (N, H, C, 2n + 4)
+        obs = np.concatenate([-a * dq_obs[:-1], dq_obs[1:]], axis=3)  # (N, S, C, 2n)
+        vals = np.concatenate([hum.reshape(N, -1), obs.reshape(N, -1)], axis=1)
+        return (
+            g.ravel() + point.z[self.slack],
+            np.concatenate([vals.ravel(), np.ones(self.num_rows)]),
+        )
+
+    def MinimumBarrier(self, point) -> float:
+        """The smallest h over the plan (diagnostics)."""
+        h_hum, _, _, h_obs, _ = self.Barriers(point)
+        values = [h.min() for h in (h_hum, h_obs) if h.size]
+        return float(min(values)) if values else np.inf

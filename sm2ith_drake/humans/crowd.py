@@ -1,0 +1,130 @@
+"""Behaviour models of the simulated people (plain numpy, one step at a time).
+
+The crowd moves with time step Δt_c. Each human has a behaviour:
+
+- ``orca``: the velocity RVO2's ORCA would choose (van den Berg et al. 2011)
+  toward its current waypoint, with the other humans and the robot base as
+  agents and the static obstacles as lines;
+- ``social_force``: Helbing's social force model, so a predictor is not only
+  scored against its own model;
+- ``scripted``: walks its waypoints at its speed, ignoring everyone;
+- ``adversarial``: walks straight at the robot base (stopping at contact).
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+# A waypoint counts as reached within this distance (m).
+WAYPOINT_TOLERANCE = 0.2
+
+
+@dataclass
+class CrowdState:
+    positions: np.ndarray  # (H, 2)
+    velocities: np.ndarray  # (H, 2)
+    waypoint: np.ndarray  # (H,) index of the current goal
+
+
+def InitialCrowdState(humans) -> CrowdState:
+    H = len(humans)
+    return CrowdState(
+        positions=np.array([h.start for h in humans], dtype=float).reshape(H, 2),
+        velocities=np.zeros((H, 2)),
+        waypoint=np.zeros(H, dtype=int),
+    )
+
+
+def PreferredVelocities(humans, state: CrowdState, time: float):
+    """Velocity toward each human's current waypoint (advancing past reached
+    waypoints), at its speed, slowing down over the last metre."""
+    H = len(humans)
+    v_pref = np.zeros((H, 2))
+    goals = state.positions.copy()
+    for j, h in enumerate(humans):
+        if not h.waypoints or time < h.start_time:
+            continue
+        w = state.waypoint[j]
+        goal = np.asarray(h.waypoints[w % len(h.waypoints)], dtype=float)
+        if np.linalg.norm(goal - state.positions[j]) < WAYPOINT_TOLERANCE:
+            if h.loop or w + 1 < len(h.waypoints):
+                state.waypoint[j] = w + 1
+                goal = np.asarray(h.waypoints[(w + 1) % len(h.waypoints)], dtype=float)
+        goals[j] = goal
+        d = goal - state.positions[j]
+        dist = np.linalg.norm(d)
+        if dist > 1e-9:
+            v_pref[j] = d / dist * h.speed * min(1.0, dist)
+    return v_pref, goals
+
+
+def StepCrowd(
+    humans,
+    state: CrowdState,
+    *,
+    time: float,
+    dt: float,
+    robot_position,
+    robot_velocity,
+    robot_radius: float,
+    obstacle_segments,
+    tau: float,
+    tau_obs: float,
+) -> CrowdState:
+    """Advances every human by dt; returns the new state."""
+    H = len(humans)
+    p, v = state.positions.copy(), state.velocities.copy()
+    radii = np.array([h.radius for h in humans], dtype=float)
+    v_pref, goals = PreferredVelocities(humans, state, time)
+    robot_position = np.asarray(robot_position, dtype=float)[:2]
+    robot_velocity = np.asarray(robot_velocity, dtype=float)[:2]
+    new_v = np.zeros((H, 2))
+    social = [j for j, h in enumerate(humans) if h.behavior == "social_force"]
+    for j, h in enumerate(humans):
+        waiting = time < h.start_time
+        if h.behavior == "scripted" or (waiting and h.behavior != "orca"):
+            new_v[j] = v_pref[j]
+        elif h.behavior == "adversarial":
+            d = robot_position - p[j]
+            gap = np.linalg.norm(d) - robot_radius - h.radius
+            if waiting or gap <= 0.05:
+                new_v[j] = 0.0
+            else:
+                new_v[j] = d / np.linalg.norm(d) * min(h.speed, gap / dt)
+        elif h.behavior == "orca":
+            from sm2ith_drake.humans.orca import orca_velocity
+
+            others = [i for i in range(H) if i != j]
+            new_v[j] = orca_velocity(
+                p[j],
+                v[j],
+                h.radius,
+                np.vstack([p[others], robot_position[None]]),
+                np.vstack([v[others], robot_velocity[None]]),
+                np.concatenate([radii[others], [robot_radius]]),
+                preferred_velocity=v_pref[j],
+                max_speed=max(h.speed, 1e-3),
+                tau=tau,
+                tau_obs=tau_obs,
+                time_step=dt,
+                obstacles=[tuple(s) for s in obstacle_segments],
+            )
+    if social:
+        from sm2ith_drake.humans.social_force import social_force_step
+
+        sp, sv = social_force_step(
+            p[social],
+            v[social],
+            goals[social],
+            radii[social],
+            dt=dt,
+            robot_position=robot_position,
+            robot_velocity=robot_velocity,
+            robot_radius=robot_radius,
+            obstacles=[tuple(s) for s in obstacle_segments],
+            max_speeds=np.array([humans[j].speed for j in social]),
+        )
+        new_v[social] = sv
+    return CrowdState(
+        positions=p + dt * new_v, velocities=new_v, waypoint=state.waypoint.copy()
+    )
