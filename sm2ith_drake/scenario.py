@@ -153,8 +153,10 @@ class PredictionConfig:
     # Slack penalties M of the relaxed ORCA QP (acceleration, half-planes).
     slack_weight_acceleration: float = 10.0
     slack_weight_velocity: float = 100.0
-    # Complementarity relaxation λᵢ cᵢ ≥ −ε of the KKT embedding.
-    complementarity_relaxation: float = 1e-3
+    # Complementarity relaxation λᵢ cᵢ ≥ −ε of the KKT embedding (measured:
+    # ε = 1e-3 → 58 %, 1e-4 → 74 %, 1e-5 → 79 %, 1e-6 → 80 % of predicted
+    # actions within 1e-2 m/s of the re-solved QP in a head-on test).
+    complementarity_relaxation: float = 1e-5
     # Maximum number of humans the controller tracks (the program's size).
     max_humans: int = 3
 

@@ -349,8 +349,6 @@ class MpcProgram:
             lower[self.cbf.slack] = 0.0
         self.variable_lower = lower
         self.variable_upper = upper
-        if predictor is not None and hasattr(predictor, "SetUpCosts"):
-            predictor.SetUpCosts(self)
 
     def VariableBounds(self, q0: np.ndarray, nu0: np.ndarray):
         """Variable bounds with the initial condition (eq. htmpc_init) pinned."""

@@ -436,18 +436,48 @@ class _KktBlocks:
         self.keep0 = np.r_[np.arange(o + 2 * H), np.arange(o + 4 * H, self.width)]
         self._cache = {"key": None}
 
-    def Flatten(self, J):
-        """Values of dense local Jacobians J (N, H, rows, width) in the
-        pattern's block order (k = 0 blocks have no velocity columns)."""
-        first = J[0][..., self.keep0].reshape(-1)
-        return np.concatenate([first, J[1:].reshape(-1)])
+    def AgentColumns(self, j, i):
+        """Local state columns of human j's i-th other agent (the humans
+        i ≠ j in order, then the robot base)."""
+        H = self.pred.H
+        if i < H - 1:
+            other = [h for h in range(H) if h != j][i]
+            return np.r_[
+                self.ip.start + 2 * other + np.arange(2),
+                self.iv.start + 2 * other + np.arange(2),
+            ]
+        return np.r_[
+            np.arange(self.iq.start, self.iq.stop),
+            np.arange(self.inu.start, self.inu.stop),
+        ]
 
-    def Pattern(self, row_offset_of, rows_per_block):
-        row_blocks, col_blocks = [], []
-        for (k, j), cols in self.cols.items():
-            row_blocks.append(row_offset_of(k, j) + np.arange(rows_per_block))
-            col_blocks.append(cols)
-        return row_blocks, col_blocks
+    def OwnStateColumns(self, j):
+        return (
+            self.ip.start + 2 * j + np.arange(2),
+            self.iv.start + 2 * j + np.arange(2),
+        )
+
+    def _Mask(self, masks, k, j):
+        return masks[j] if k > 0 else masks[j][:, self.keep0]
+
+    def Pattern(self, row_offset_of, masks):
+        """Rows and columns of the structural nonzeros ``masks`` (H, rows,
+        width) of every (k, j) block (k = 0 has no velocity columns)."""
+        rows, cols = [], []
+        for (k, j), block_cols in self.cols.items():
+            rr, cc = np.nonzero(self._Mask(masks, k, j))
+            rows.append(row_offset_of(k, j) + rr)
+            cols.append(block_cols[cc])
+        return np.concatenate(rows), np.concatenate(cols)
+
+    def Flatten(self, J, masks):
+        """The values of dense local Jacobians J (N, H, rows, width) at the
+        structural nonzeros, in the pattern's order."""
+        out = []
+        for k, j in self.cols:
+            block = J[k, j] if k > 0 else J[k, j][:, self.keep0]
+            out.append(block[self._Mask(masks, k, j)])
+        return np.concatenate(out)
 
     def StateToColumns(self, dX, q, nu):
         """Maps derivatives w.r.t. the local state (…, D) (k-leading) to the
@@ -508,16 +538,27 @@ class _KktEqualities(ConstraintGroup):
         self.re = 2 + 1 + A
         self.num_kkt = N * H * self.re
         self.num_rows = self.num_kkt + N * H * 2
-        row_blocks, col_blocks = self.blocks.Pattern(
-            lambda k, j: (k * H + j) * self.re, self.re
-        )
+        b, R = self.blocks, self.blocks.R
+        ilam, imu = 3 + A, 3 + A + R
+        self.masks = np.zeros((H, self.re, b.width), dtype=bool)
+        m = self.masks
+        m[:, 0:2, 0:2] = True  # stationarity in a: a, every λ, every state
+        m[:, 0:2, ilam : ilam + R] = True
+        m[:, 0:2, b.ip.start :] = True
+        m[:, 2, [2, ilam + 1, imu]] = True  # in ζ_a
+        for i in range(A):  # in ζ_v,i
+            m[:, 3 + i, [3 + i, ilam + 2 + i, imu + 1 + i]] = True
+        kkt_rows, kkt_cols = b.Pattern(lambda k, j: (k * H + j) * self.re, m)
+        row_blocks, col_blocks = [], []
         for k in range(N):
             for j in range(H):
                 row_blocks.append(self.num_kkt + (k * H + j) * 2 + np.arange(2))
                 col_blocks.append(
                     np.concatenate([pred.p[k + 1, j], pred.p[k, j], pred.a[k, j]])
                 )
-        self.rows, self.cols = _BlockPattern(row_blocks, col_blocks)
+        dyn_rows, dyn_cols = _BlockPattern(row_blocks, col_blocks)
+        self.rows = np.concatenate([kkt_rows, dyn_rows])
+        self.cols = np.concatenate([kkt_cols, dyn_cols])
 
     def Eval(self, point):
         pred, b = self.pred, self.blocks
@@ -573,7 +614,7 @@ class _KktEqualities(ConstraintGroup):
         block = np.concatenate([eye, -eye, -pred.dt * eye], axis=1)  # (2, 6)
         vals_dyn = np.broadcast_to(block, (N, H, 2, 6)).reshape(-1)
         g = np.concatenate([g_kkt.reshape(-1), g_dyn.reshape(-1)])
-        return g, np.concatenate([b.Flatten(J), vals_dyn])
+        return g, np.concatenate([b.Flatten(J, self.masks), vals_dyn])
 
 
 class _KktInequalities(ConstraintGroup):
@@ -589,10 +630,28 @@ class _KktInequalities(ConstraintGroup):
         R = self.blocks.R
         self.ri = 2 * R + 1 + A
         self.num_rows = N * H * self.ri
-        row_blocks, col_blocks = self.blocks.Pattern(
-            lambda k, j: (k * H + j) * self.ri, self.ri
-        )
-        self.rows, self.cols = _BlockPattern(row_blocks, col_blocks)
+        b = self.blocks
+        ilam, imu = 3 + A, 3 + A + R
+        self.masks = np.zeros((H, self.ri, b.width), dtype=bool)
+        for j in range(H):
+            m = self.masks[j]
+            own_p, own_v = b.OwnStateColumns(j)
+            primal = np.zeros((R, b.width), dtype=bool)
+            primal[:, 0:2] = True  # every c depends on a
+            primal[1, 2] = True  # c_a: ζ_a and v_j
+            primal[1, own_v] = True
+            for i in range(A):  # agent lines: ζ_v,i, own and agent i's state
+                primal[2 + i, 3 + i] = True
+                primal[2 + i, own_p] = True
+                primal[2 + i, own_v] = True
+                primal[2 + i, b.AgentColumns(j, i)] = True
+            primal[2 + A :, own_p] = True  # static lines: own position only
+            m[:R] = primal
+            m[R : 2 * R] = primal
+            m[R + np.arange(R), ilam + np.arange(R)] = True
+            for r in range(1 + A):
+                m[2 * R + r, [2 + r, imu + r]] = True
+        self.rows, self.cols = b.Pattern(lambda k, j: (k * H + j) * self.ri, self.masks)
 
     def Bounds(self, eps):
         pred, R = self.pred, self.blocks.R
@@ -642,4 +701,4 @@ class _KktInequalities(ConstraintGroup):
             dmz[:, :, r, imu + r] = zeta[..., r]
         g = np.concatenate([c, e["lc"], mu * zeta], axis=-1)
         J = np.concatenate([dc, dlc, dmz], axis=2)
-        return g.reshape(-1), b.Flatten(J)
+        return g.reshape(-1), b.Flatten(J, self.masks)
