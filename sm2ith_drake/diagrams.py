@@ -101,14 +101,11 @@ def MakeSimulation(
     )
     crowd = None
     if has_humans:
-        crowd, _, estimator = _AddHumans(builder, scenario, robot, segments)
+        crowd, estimate = _AddHumans(builder, scenario, robot, segments)
         builder.Connect(
             sim_robot.GetOutputPort("state"), crowd.GetInputPort("robot_state")
         )
-        builder.Connect(
-            estimator.GetOutputPort("human_estimate"),
-            controller.GetInputPort("human_estimate"),
-        )
+        builder.Connect(estimate, controller.GetInputPort("human_estimate"))
         builder.Connect(
             crowd.GetOutputPort("human_truth"), logger.GetInputPort("human_truth")
         )
@@ -193,7 +190,8 @@ def MakeSimulation(
 
 
 def _AddHumans(builder, scenario, robot, segments):
-    """CrowdSimulator → MocapSensor → HumanEstimator."""
+    """CrowdSimulator → MocapSensor → HumanEstimator; returns the crowd and
+    the output port of what the controller sees."""
     pc = scenario.perception
     crowd = builder.AddNamedSystem(
         "crowd",
@@ -206,6 +204,8 @@ def _AddHumans(builder, scenario, robot, segments):
             tau_obs=scenario.prediction.tau_obs,
         ),
     )
+    if pc.estimator == "truth":
+        return crowd, crowd.GetOutputPort("human_truth")
     sensor = builder.AddNamedSystem(
         "mocap",
         MocapSensor(
@@ -230,7 +230,7 @@ def _AddHumans(builder, scenario, robot, segments):
     builder.Connect(
         sensor.GetOutputPort("detections"), estimator.GetInputPort("detections")
     )
-    return crowd, sensor, estimator
+    return crowd, estimator.GetOutputPort("human_estimate")
 
 
 def _FrameScene(meshcat: Meshcat, q0, tasks) -> None:

@@ -178,6 +178,9 @@ class SafetyConfig:
 class PerceptionConfig:
     """The simulated motion-capture of the humans."""
 
+    # "kalman": noisy, dropping detections tracked by a Kalman filter per
+    # human; "truth": the controller sees the true states (ideal perception).
+    estimator: str = "kalman"
     # Standard deviation of the position noise (m).
     noise: float = 0.01
     # Probability that a detection is missing in a frame.
@@ -322,6 +325,10 @@ def ValidateScenario(scenario: Scenario) -> None:
     if not 0 < scenario.safety.gamma <= 1:
         raise ScenarioError("safety.gamma must be in (0, 1]")
     pc = scenario.perception
+    if pc.estimator not in ("kalman", "truth"):
+        raise ScenarioError(
+            f"perception.estimator must be kalman|truth: {pc.estimator}"
+        )
     if pc.noise < 0 or not 0 <= pc.dropout_probability < 1 or pc.period <= 0:
         raise ScenarioError("perception: noise ≥ 0, dropout in [0, 1), period > 0")
     names = [t.name or t.kind for t in scenario.tasks]

@@ -112,19 +112,21 @@ def StepCrowd(
     if social:
         from sm2ith_drake.humans.social_force import social_force_step
 
-        sp, sv = social_force_step(
-            p[social],
-            v[social],
-            goals[social],
-            radii[social],
+        # Everyone moves in the model (so the social-force people are pushed
+        # by all the others); only their own rows are kept.
+        _, sv = social_force_step(
+            p,
+            v,
+            goals,
+            radii,
             dt=dt,
             robot_position=robot_position,
             robot_velocity=robot_velocity,
             robot_radius=robot_radius,
             obstacles=[tuple(s) for s in obstacle_segments],
-            max_speeds=np.array([humans[j].speed for j in social]),
+            max_speeds=np.array([max(h.speed, 1e-3) for h in humans]),
         )
-        new_v[social] = sv
+        new_v[social] = sv[social]
     return CrowdState(
         positions=p + dt * new_v, velocities=new_v, waypoint=state.waypoint.copy()
     )

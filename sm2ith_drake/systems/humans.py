@@ -170,7 +170,7 @@ class HumanEstimator(LeafSystem):
         track_timeout: float,
     ):
         super().__init__()
-        from sm2ith_drake.humans.kalman import HumanTracks
+        from sm2ith_drake.humans.tracking import HumanTracks
 
         self._make_tracks = lambda: HumanTracks(
             measurement_noise=max(measurement_noise, 1e-3),

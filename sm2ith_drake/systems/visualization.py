@@ -144,7 +144,7 @@ class HumanVisualizer(LeafSystem):
             )
         for slot in range(max_humans):
             for k in range(horizon + 1):
-                meshcat.SetObject(self._PredictionPath(slot, k), Sphere(0.04), GREEN)
+                meshcat.SetObject(self._PredictionPath(slot, k), Sphere(0.06), GREEN)
         for i, o in enumerate(obstacles):
             v = np.asarray(o.vertices, dtype=float)
             edges = (
@@ -192,7 +192,7 @@ class HumanVisualizer(LeafSystem):
             active = plan.human_slot_ids[slot] >= 0
             for k in range(min(self._N + 1, plan.human_predictions.shape[0])):
                 p = plan.human_predictions[k, slot]
-                z = 0.02 if active else -10.0  # hide empty slots below the floor
+                z = 0.06 if active else -10.0  # hide empty slots below the floor
                 meshcat.SetTransform(
                     self._PredictionPath(slot, k), RigidTransform([p[0], p[1], z]), t
                 )

@@ -1,0 +1,524 @@
+"""ORCA (van den Berg, Guy, Lin, Manocha 2011) exactly as the RVO2 library
+builds it, in numpy: the ORCA half-planes of one agent and its new velocity.
+
+Public functions:
+
+- :func:`orca_half_planes` — RVO2's ``orcaLines_`` (static obstacles first,
+  then agents, each group sorted by distance as RVO2's neighbour queries do):
+  lines (point, unit direction); allowed velocities lie to the *left* of the
+  direction, i.e. n·v ≥ n·point with n the left normal
+  (:func:`half_plane_normal_form`).
+- :func:`orca_velocity` — the new velocity: RVO2's ``linearProgram2`` on the
+  speed disc, and ``linearProgram3`` (minimum penetration, obstacle lines
+  kept hard) when the lines are infeasible.
+
+Obstacles are polygons given by their vertices in counter-clockwise order, or
+line segments (two vertices), as RVO2's ``addObstacle`` takes them. What is
+not reproduced: RVO2's kd-tree splits obstacle edges that cross another
+edge's supporting line; scenes whose obstacle edges do not cross other edges'
+lines (walls, boxes apart from each other) are unaffected.
+"""
+
+import numpy as np
+
+RVO_EPSILON = 1e-5
+
+
+def _Det(a, b):
+    return float(a[0] * b[1] - a[1] * b[0])
+
+
+def _Normalize(v):
+    return v / np.linalg.norm(v)
+
+
+class _ObstacleVertex:
+    __slots__ = ("point", "next", "prev", "unit_dir", "is_convex")
+
+
+def _MakeObstacles(obstacles):
+    """RVO2's obstacle vertex rings (addObstacle)."""
+    vertices = []
+    for poly in obstacles:
+        pts = [np.asarray(p, dtype=float) for p in np.asarray(poly, dtype=float)]
+        if len(pts) < 2:
+            raise ValueError("an obstacle needs at least two vertices")
+        ring = []
+        for p in pts:
+            v = _ObstacleVertex()
+            v.point = p
+            ring.append(v)
+        n = len(ring)
+        for i, v in enumerate(ring):
+            v.next = ring[(i + 1) % n]
+            v.prev = ring[(i - 1) % n]
+            v.unit_dir = _Normalize(v.next.point - v.point)
+            if n == 2:
+                v.is_convex = True
+            else:
+                a, b, c = v.prev.point, v.point, v.next.point
+                v.is_convex = _Det(a - c, b - a) >= 0.0  # leftOf(prev, this, next)
+        vertices += ring
+    return vertices
+
+
+def _DistSqPointSegment(a, b, c):
+    r = np.dot(c - a, b - a) / np.dot(b - a, b - a)
+    if r < 0.0:
+        return float(np.dot(c - a, c - a))
+    if r > 1.0:
+        return float(np.dot(c - b, c - b))
+    d = c - (a + r * (b - a))
+    return float(np.dot(d, d))
+
+
+def _ObstacleLines(position, velocity, radius, vertices, tau_obs, range_sq):
+    """RVO2's obstacle ORCA lines (Agent::computeNewVelocity, first part)."""
+    lines = []
+    neighbors = []
+    for v1 in vertices:
+        v2 = v1.next
+        # Only edges the agent is to the right of (outside), within range.
+        # RVO2's leftOf(p1, p2, agent) = det(p1 − agent, p2 − p1).
+        if _Det(v1.point - position, v2.point - v1.point) >= 0.0:
+            continue
+        dist_sq = _DistSqPointSegment(v1.point, v2.point, position)
+        if dist_sq < range_sq:
+            neighbors.append((dist_sq, v1))
+    neighbors.sort(key=lambda x: x[0])
+    inv_tau = 1.0 / tau_obs
+    radius_sq = radius * radius
+    for _, obstacle1 in neighbors:
+        obstacle2 = obstacle1.next
+        rel1 = obstacle1.point - position
+        rel2 = obstacle2.point - position
+        covered = False
+        for point, direction in lines:
+            if (
+                _Det(inv_tau * rel1 - point, direction) - inv_tau * radius
+                >= -RVO_EPSILON
+                and _Det(inv_tau * rel2 - point, direction) - inv_tau * radius
+                >= -RVO_EPSILON
+            ):
+                covered = True
+                break
+        if covered:
+            continue
+        dist_sq1 = float(rel1 @ rel1)
+        dist_sq2 = float(rel2 @ rel2)
+        obstacle_vector = obstacle2.point - obstacle1.point
+        s = float(-rel1 @ obstacle_vector) / float(obstacle_vector @ obstacle_vector)
+        diff = -rel1 - s * obstacle_vector
+        dist_sq_line = float(diff @ diff)
+        if s < 0.0 and dist_sq1 <= radius_sq:
+            if obstacle1.is_convex:
+                lines.append((np.zeros(2), _Normalize(np.array([-rel1[1], rel1[0]]))))
+            continue
+        if s > 1.0 and dist_sq2 <= radius_sq:
+            if obstacle2.is_convex and _Det(rel2, obstacle2.unit_dir) >= 0.0:
+                lines.append((np.zeros(2), _Normalize(np.array([-rel2[1], rel2[0]]))))
+            continue
+        if 0.0 <= s < 1.0 and dist_sq_line <= radius_sq:
+            lines.append((np.zeros(2), -obstacle1.unit_dir))
+            continue
+        # No collision: the legs.
+        if s < 0.0 and dist_sq_line <= radius_sq:
+            if not obstacle1.is_convex:
+                continue
+            obstacle2 = obstacle1
+            leg1 = np.sqrt(dist_sq1 - radius_sq)
+            left_leg = (
+                np.array(
+                    [
+                        rel1[0] * leg1 - rel1[1] * radius,
+                        rel1[0] * radius + rel1[1] * leg1,
+                    ]
+                )
+                / dist_sq1
+            )
+            right_leg = (
+                np.array(
+                    [
+                        rel1[0] * leg1 + rel1[1] * radius,
+                        -rel1[0] * radius + rel1[1] * leg1,
+                    ]
+                )
+                / dist_sq1
+            )
+        elif s > 1.0 and dist_sq_line <= radius_sq:
+            if not obstacle2.is_convex:
+                continue
+            obstacle1 = obstacle2
+            leg2 = np.sqrt(dist_sq2 - radius_sq)
+            left_leg = (
+                np.array(
+                    [
+                        rel2[0] * leg2 - rel2[1] * radius,
+                        rel2[0] * radius + rel2[1] * leg2,
+                    ]
+                )
+                / dist_sq2
+            )
+            right_leg = (
+                np.array(
+                    [
+                        rel2[0] * leg2 + rel2[1] * radius,
+                        -rel2[0] * radius + rel2[1] * leg2,
+                    ]
+                )
+                / dist_sq2
+            )
+        else:
+            if obstacle1.is_convex:
+                leg1 = np.sqrt(dist_sq1 - radius_sq)
+                left_leg = (
+                    np.array(
+                        [
+                            rel1[0] * leg1 - rel1[1] * radius,
+                            rel1[0] * radius + rel1[1] * leg1,
+                        ]
+                    )
+                    / dist_sq1
+                )
+            else:
+                left_leg = -obstacle1.unit_dir
+            if obstacle2.is_convex:
+                leg2 = np.sqrt(dist_sq2 - radius_sq)
+                right_leg = (
+                    np.array(
+                        [
+                            rel2[0] * leg2 + rel2[1] * radius,
+                            -rel2[0] * radius + rel2[1] * leg2,
+                        ]
+                    )
+                    / dist_sq2
+                )
+            else:
+                right_leg = obstacle1.unit_dir
+        left_neighbor = obstacle1.prev
+        left_foreign = right_foreign = False
+        if obstacle1.is_convex and _Det(left_leg, -left_neighbor.unit_dir) >= 0.0:
+            left_leg = -left_neighbor.unit_dir
+            left_foreign = True
+        if obstacle2.is_convex and _Det(right_leg, obstacle2.unit_dir) <= 0.0:
+            right_leg = obstacle2.unit_dir
+            right_foreign = True
+        left_cutoff = inv_tau * (obstacle1.point - position)
+        right_cutoff = inv_tau * (obstacle2.point - position)
+        cutoff_vec = right_cutoff - left_cutoff
+        same = obstacle1 is obstacle2
+        t = (
+            0.5
+            if same
+            else float((velocity - left_cutoff) @ cutoff_vec)
+            / float(cutoff_vec @ cutoff_vec)
+        )
+        t_left = float((velocity - left_cutoff) @ left_leg)
+        t_right = float((velocity - right_cutoff) @ right_leg)
+        if (t < 0.0 and t_left < 0.0) or (same and t_left < 0.0 and t_right < 0.0):
+            unit_w = _Normalize(velocity - left_cutoff)
+            lines.append(
+                (
+                    left_cutoff + radius * inv_tau * unit_w,
+                    np.array([unit_w[1], -unit_w[0]]),
+                )
+            )
+            continue
+        if t > 1.0 and t_right < 0.0:
+            unit_w = _Normalize(velocity - right_cutoff)
+            lines.append(
+                (
+                    right_cutoff + radius * inv_tau * unit_w,
+                    np.array([unit_w[1], -unit_w[0]]),
+                )
+            )
+            continue
+        inf = np.inf
+        d_cut = (
+            inf
+            if (t < 0.0 or t > 1.0 or same)
+            else float(np.sum((velocity - (left_cutoff + t * cutoff_vec)) ** 2))
+        )
+        d_left = (
+            inf
+            if t_left < 0.0
+            else float(np.sum((velocity - (left_cutoff + t_left * left_leg)) ** 2))
+        )
+        d_right = (
+            inf
+            if t_right < 0.0
+            else float(np.sum((velocity - (right_cutoff + t_right * right_leg)) ** 2))
+        )
+        if d_cut <= d_left and d_cut <= d_right:
+            direction = -obstacle1.unit_dir
+            lines.append(
+                (
+                    left_cutoff
+                    + radius * inv_tau * np.array([-direction[1], direction[0]]),
+                    direction,
+                )
+            )
+        elif d_left <= d_right:
+            if left_foreign:
+                continue
+            direction = left_leg
+            lines.append(
+                (
+                    left_cutoff
+                    + radius * inv_tau * np.array([-direction[1], direction[0]]),
+                    direction,
+                )
+            )
+        else:
+            if right_foreign:
+                continue
+            direction = -right_leg
+            lines.append(
+                (
+                    right_cutoff
+                    + radius * inv_tau * np.array([-direction[1], direction[0]]),
+                    direction,
+                )
+            )
+    return lines
+
+
+def _AgentLine(position, velocity, radius, other_p, other_v, other_r, tau, dt, share):
+    """One agent-agent ORCA line (Agent::computeNewVelocity, second part)."""
+    rel_p = other_p - position
+    rel_v = velocity - other_v
+    dist_sq = float(rel_p @ rel_p)
+    R = radius + other_r
+    R_sq = R * R
+    if dist_sq > R_sq:
+        w = rel_v - rel_p / tau
+        w_len_sq = float(w @ w)
+        dot1 = float(w @ rel_p)
+        if dot1 < 0.0 and dot1 * dot1 > R_sq * w_len_sq:
+            w_len = np.sqrt(w_len_sq)
+            unit_w = w / w_len
+            direction = np.array([unit_w[1], -unit_w[0]])
+            u = (R / tau - w_len) * unit_w
+        else:
+            leg = np.sqrt(dist_sq - R_sq)
+            if _Det(rel_p, w) > 0.0:
+                direction = (
+                    np.array(
+                        [rel_p[0] * leg - rel_p[1] * R, rel_p[0] * R + rel_p[1] * leg]
+                    )
+                    / dist_sq
+                )
+            else:
+                direction = (
+                    -np.array(
+                        [rel_p[0] * leg + rel_p[1] * R, -rel_p[0] * R + rel_p[1] * leg]
+                    )
+                    / dist_sq
+                )
+            u = float(rel_v @ direction) * direction - rel_v
+    else:
+        w = rel_v - rel_p / dt
+        w_len = np.linalg.norm(w)
+        unit_w = w / w_len
+        direction = np.array([unit_w[1], -unit_w[0]])
+        u = (R / dt - w_len) * unit_w
+    return velocity + share * u, direction
+
+
+def orca_half_planes(
+    position,
+    velocity,
+    radius,
+    other_positions,
+    other_velocities,
+    other_radii,
+    *,
+    tau=2.0,
+    tau_obs=0.5,
+    time_step,
+    shares=None,
+    obstacles=(),
+    max_speed=None,
+    neighbor_dist=np.inf,
+):
+    """The ORCA lines of one agent, as RVO2 builds them.
+
+    Args:
+        position, velocity, radius: the agent.
+        other_positions, other_velocities, other_radii: the other agents
+            (M, 2), (M, 2), (M,).
+        tau, tau_obs: time horizons for agents and static obstacles (s).
+        time_step: the simulation step (used when already colliding).
+        shares: responsibility per other agent (default 0.5: reciprocal).
+        obstacles: polygons (vertex lists, counter-clockwise) or segments.
+        max_speed: with obstacles, RVO2 only considers obstacle edges within
+            τ_obs·max_speed + radius (all of them if None).
+        neighbor_dist: agents farther than this are ignored (RVO2's
+            neighborDist).
+
+    Returns:
+        points (L, 2), directions (L, 2) and the number of obstacle lines
+        (they come first).
+    """
+    position = np.asarray(position, dtype=float)
+    velocity = np.asarray(velocity, dtype=float)
+    other_positions = np.asarray(other_positions, dtype=float).reshape(-1, 2)
+    other_velocities = np.asarray(other_velocities, dtype=float).reshape(-1, 2)
+    other_radii = np.broadcast_to(
+        np.asarray(other_radii, dtype=float), (len(other_positions),)
+    )
+    shares = (
+        np.full(len(other_positions), 0.5)
+        if shares is None
+        else np.broadcast_to(np.asarray(shares, dtype=float), (len(other_positions),))
+    )
+    range_sq = np.inf if max_speed is None else (tau_obs * max_speed + radius) ** 2
+    lines = _ObstacleLines(
+        position, velocity, radius, _MakeObstacles(obstacles), tau_obs, range_sq
+    )
+    num_obstacle_lines = len(lines)
+    dist_sq = np.sum((other_positions - position) ** 2, axis=1)
+    for i in np.argsort(dist_sq, kind="stable"):
+        if dist_sq[i] >= neighbor_dist**2:
+            continue
+        lines.append(
+            _AgentLine(
+                position,
+                velocity,
+                radius,
+                other_positions[i],
+                other_velocities[i],
+                other_radii[i],
+                tau,
+                time_step,
+                shares[i],
+            )
+        )
+    points = np.array([p for p, _ in lines]).reshape(-1, 2)
+    directions = np.array([d for _, d in lines]).reshape(-1, 2)
+    return points, directions, num_obstacle_lines
+
+
+def half_plane_normal_form(points, directions):
+    """Lines (point, direction) as half-planes n·v ≥ ρ (n the unit left
+    normal of the direction)."""
+    d = np.asarray(directions, dtype=float).reshape(-1, 2)
+    n = np.column_stack([-d[:, 1], d[:, 0]])
+    return n, np.sum(n * np.asarray(points, dtype=float).reshape(-1, 2), axis=1)
+
+
+def _LinearProgram1(points, dirs, line_no, radius, opt, direction_opt):
+    p, d = points[line_no], dirs[line_no]
+    dot = float(p @ d)
+    disc = dot * dot + radius * radius - float(p @ p)
+    if disc < 0.0:
+        return None
+    sq = np.sqrt(disc)
+    t_left, t_right = -dot - sq, -dot + sq
+    for i in range(line_no):
+        denominator = _Det(d, dirs[i])
+        numerator = _Det(dirs[i], p - points[i])
+        if abs(denominator) <= RVO_EPSILON:
+            if numerator < 0.0:
+                return None
+            continue
+        t = numerator / denominator
+        if denominator >= 0.0:
+            t_right = min(t_right, t)
+        else:
+            t_left = max(t_left, t)
+        if t_left > t_right:
+            return None
+    if direction_opt:
+        return p + (t_right if float(opt @ d) > 0.0 else t_left) * d
+    t = float(d @ (opt - p))
+    return p + min(max(t, t_left), t_right) * d
+
+
+def _LinearProgram2(points, dirs, radius, opt, direction_opt):
+    if direction_opt:
+        result = opt * radius
+    elif float(opt @ opt) > radius * radius:
+        result = _Normalize(opt) * radius
+    else:
+        result = opt.copy()
+    for i in range(len(points)):
+        if _Det(dirs[i], points[i] - result) > 0.0:
+            new = _LinearProgram1(points, dirs, i, radius, opt, direction_opt)
+            if new is None:
+                return i, result
+            result = new
+    return len(points), result
+
+
+def _LinearProgram3(points, dirs, num_obstacle_lines, begin, radius, result):
+    distance = 0.0
+    for i in range(begin, len(points)):
+        if _Det(dirs[i], points[i] - result) > distance:
+            proj_p = list(points[:num_obstacle_lines])
+            proj_d = list(dirs[:num_obstacle_lines])
+            for j in range(num_obstacle_lines, i):
+                determinant = _Det(dirs[i], dirs[j])
+                if abs(determinant) <= RVO_EPSILON:
+                    if float(dirs[i] @ dirs[j]) > 0.0:
+                        continue
+                    point = 0.5 * (points[i] + points[j])
+                else:
+                    point = (
+                        points[i]
+                        + (_Det(dirs[j], points[i] - points[j]) / determinant) * dirs[i]
+                    )
+                proj_p.append(point)
+                proj_d.append(_Normalize(dirs[j] - dirs[i]))
+            proj_p = np.array(proj_p).reshape(-1, 2)
+            proj_d = np.array(proj_d).reshape(-1, 2)
+            fail, new = _LinearProgram2(
+                proj_p, proj_d, radius, np.array([-dirs[i][1], dirs[i][0]]), True
+            )
+            if fail >= len(proj_p):
+                result = new
+            distance = _Det(dirs[i], points[i] - result)
+    return result
+
+
+def orca_velocity(
+    position,
+    velocity,
+    radius,
+    other_positions,
+    other_velocities,
+    other_radii,
+    *,
+    preferred_velocity,
+    max_speed,
+    tau=2.0,
+    tau_obs=0.5,
+    time_step,
+    shares=None,
+    obstacles=(),
+    neighbor_dist=np.inf,
+):
+    """The velocity RVO2 chooses for the agent (see :func:`orca_half_planes`
+    for the arguments): the closest to ``preferred_velocity`` within
+    ``max_speed`` satisfying every ORCA line, or, if none does, the one that
+    least violates the agent lines while keeping the obstacle lines."""
+    points, dirs, num_obstacle = orca_half_planes(
+        position,
+        velocity,
+        radius,
+        other_positions,
+        other_velocities,
+        other_radii,
+        tau=tau,
+        tau_obs=tau_obs,
+        time_step=time_step,
+        shares=shares,
+        obstacles=obstacles,
+        max_speed=max_speed,
+        neighbor_dist=neighbor_dist,
+    )
+    opt = np.asarray(preferred_velocity, dtype=float)
+    fail, result = _LinearProgram2(points, dirs, max_speed, opt, False)
+    if fail < len(points):
+        result = _LinearProgram3(points, dirs, num_obstacle, fail, max_speed, result)
+    return result

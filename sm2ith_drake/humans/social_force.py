@@ -1,0 +1,104 @@
+"""Helbing's social force model (Helbing & Molnár 1995; Helbing, Farkas &
+Vicsek 2000), for simulated people that do not follow ORCA.
+
+Each person i accelerates toward its goal and is pushed away from others,
+walls and the robot:
+
+    dv_i/dt = (v0_i e_i − v_i)/τ_relax
+              + Σ_j A exp((r_ij − d_ij)/B) n_ij          (people, robot)
+              + Σ_w A_w exp((r_i − d_iw)/B_w) n_iw       (walls)
+
+with d the centre distance, r the sum of radii and n the unit vector away
+from the other. The speed is clamped to 1.3 v0_i (Helbing's choice). When
+bodies overlap, a contact force k (r − d) n is added as in the 2000 model.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class SocialForceParams:
+    # Relaxation time toward the desired velocity (s) (Helbing 2000: 0.5).
+    relaxation_time: float = 0.5
+    # Person–person repulsion strength (m/s²) and range (m) (Helbing 2000:
+    # A = 2000 N, B = 0.08 m for an 80 kg person → 25 m/s²; we use a softer,
+    # longer-range variant common in crowd simulation).
+    strength: float = 8.0
+    range: float = 0.4
+    # Wall repulsion.
+    wall_strength: float = 10.0
+    wall_range: float = 0.2
+    # Body contact stiffness (1/s²) for overlaps.
+    contact: float = 50.0
+    # Speed cap as a multiple of the preferred speed.
+    max_speed_factor: float = 1.3
+
+
+def _PointSegment(p, a, b):
+    ab = b - a
+    s = np.clip(np.sum((p - a) * ab, axis=-1) / max(ab @ ab, 1e-12), 0.0, 1.0)
+    return a + s[..., None] * ab
+
+
+def social_force_step(
+    positions,
+    velocities,
+    goals,
+    radii,
+    *,
+    dt,
+    robot_position=None,
+    robot_velocity=None,
+    robot_radius=0.0,
+    obstacles=(),
+    max_speeds=None,
+    params: SocialForceParams | None = None,
+):
+    """One explicit step of the social force model; returns the new
+    positions and velocities (H, 2)."""
+    params = params or SocialForceParams()
+    p = np.asarray(positions, dtype=float).reshape(-1, 2)
+    v = np.asarray(velocities, dtype=float).reshape(-1, 2)
+    goals = np.asarray(goals, dtype=float).reshape(-1, 2)
+    radii = np.asarray(radii, dtype=float).reshape(-1)
+    H = len(p)
+    v0 = np.ones(H) if max_speeds is None else np.asarray(max_speeds, dtype=float)
+    to_goal = goals - p
+    dist_goal = np.linalg.norm(to_goal, axis=1)
+    e = to_goal / np.maximum(dist_goal, 1e-9)[:, None]
+    # Slow down over the last metre so people stop at their goals.
+    desired = e * (v0 * np.minimum(1.0, dist_goal))[:, None]
+    force = (desired - v) / params.relaxation_time
+    others_p = [p]
+    others_r = [radii]
+    if robot_position is not None:
+        others_p.append(np.asarray(robot_position, dtype=float).reshape(1, 2))
+        others_r.append(np.array([robot_radius]))
+    op = np.concatenate(others_p)
+    orad = np.concatenate(others_r)
+    diff = p[:, None, :] - op[None, :, :]  # (H, H+1, 2)
+    d = np.linalg.norm(diff, axis=-1)
+    n = diff / np.maximum(d, 1e-9)[..., None]
+    r = radii[:, None] + orad[None, :]
+    mag = params.strength * np.exp((r - d) / params.range)
+    mag += params.contact * np.maximum(r - d, 0.0)
+    self_pair = np.zeros_like(d, dtype=bool)
+    self_pair[np.arange(H), np.arange(H)] = True
+    mag[self_pair] = 0.0
+    force += np.sum(mag[..., None] * n, axis=1)
+    for segment in obstacles:
+        a, b = np.asarray(segment, dtype=float)[0], np.asarray(segment, dtype=float)[1]
+        c = _PointSegment(p, a, b)
+        dw = p - c
+        dist = np.linalg.norm(dw, axis=1)
+        nw = dw / np.maximum(dist, 1e-9)[:, None]
+        mag = params.wall_strength * np.exp((radii - dist) / params.wall_range)
+        mag += params.contact * np.maximum(radii - dist, 0.0)
+        force += mag[:, None] * nw
+    new_v = v + dt * force
+    speed = np.linalg.norm(new_v, axis=1)
+    cap = params.max_speed_factor * v0
+    new_v *= np.minimum(1.0, cap / np.maximum(speed, 1e-9))[:, None]
+    return p + dt * new_v, new_v
