@@ -124,6 +124,9 @@ def BenchmarkScenario(robot: str, humans: int, predictor: str, solver: str = "rt
     scenario.prediction.predictor = predictor
     scenario.prediction.max_humans = max(humans, 1)
     scenario.perception.estimator = "truth"
+    if humans and predictor == "orca_kkt":
+        # As the shipped crowd scenarios: two SQP passes for the KKT model.
+        scenario.controller.rti_iterations = 2
     return scenario
 
 

@@ -99,6 +99,10 @@ class ControllerConfig:
     # After a failed solve, the previous plan is replayed (shifted) for at
     # most this many control steps before braking.
     max_fallback_steps: int = 3
+    # Diagnostics: re-solve every human's relaxed-ORCA QP at the planned
+    # states after each ORCA-KKT solve and log the action errors (costs a few
+    # ms per human; not counted in the step time).
+    check_predictions: bool = False
 
 
 HUMAN_BEHAVIORS = ("orca", "social_force", "scripted", "adversarial")
@@ -172,6 +176,11 @@ class SafetyConfig:
     obstacle_margin: float = 0.05
     # Radius the controller assumes for a tracked human (m).
     human_radius: float = 0.3
+    # Also hold the first step's barrier against every human moving on at its
+    # measured velocity, whatever the prediction expects: an interactive
+    # model may count on people giving way, but the robot never closes in
+    # on one who does not faster than the barrier allows.
+    first_step_guard: bool = True
 
 
 @dataclass
@@ -187,9 +196,9 @@ class PerceptionConfig:
     dropout_probability: float = 0.0
     # Detection period (s).
     period: float = 0.05
-    # Kalman filter: white acceleration noise (m/s²) and the time after
-    # which an unseen track is dropped (s).
-    acceleration_noise: float = 2.0
+    # Kalman filter: white acceleration noise (m/s^1.5, the spectral density's
+    # square root) and the time after which an unseen track is dropped (s).
+    acceleration_noise: float = 0.5
     track_timeout: float = 1.0
 
 

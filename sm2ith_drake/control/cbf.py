@@ -63,7 +63,11 @@ class DtCbfGroup(ConstraintGroup):
     """h_{k+1} − (1 − γ) h_k ≥ 0 for robot capsules vs. humans and walls.
 
     Rows are k-major: for each k, first H × C human rows (human-major), then
-    S × C obstacle rows.
+    S × C obstacle rows. With ``first_step_guard``, H × C more rows hold the
+    first step against each human moving on at its *measured* velocity
+    (``SetGuard``), whatever the predictor expects the human to do: an
+    interactive prediction may count on a person giving way, but the robot
+    never closes in on one who does not faster than the barrier allows.
     """
 
     name = "dt_cbf"
@@ -79,6 +83,7 @@ class DtCbfGroup(ConstraintGroup):
         human_margin,
         obstacle_segments,
         obstacle_margin,
+        first_step_guard=False,
     ):
         self._robot = robot
         self._layout = layout
@@ -93,7 +98,10 @@ class DtCbfGroup(ConstraintGroup):
         self._human_offset = robot.capsule_radii[None, :] + human_radius + human_margin
         self._obstacle_offset = robot.capsule_radii[None, :] + obstacle_margin
         self.rows_per_step = (H + S) * C
-        self.num_rows = N * self.rows_per_step
+        self.num_guard = H * C if first_step_guard else 0
+        self.num_rows = N * self.rows_per_step + self.num_guard
+        self.guard_p0 = np.zeros((H, 2))
+        self.guard_p1 = np.zeros((H, 2))
         row_blocks, col_blocks = [], []
         for k in range(N):
             base = k * self.rows_per_step
@@ -114,6 +122,9 @@ class DtCbfGroup(ConstraintGroup):
                 for c in range(C):
                     row_blocks.append(np.array([base + H * C + s * C + c]))
                     col_blocks.append(np.concatenate([layout.q[k], layout.q[k + 1]]))
+        for r in range(self.num_guard):
+            row_blocks.append(np.array([N * self.rows_per_step + r]))
+            col_blocks.append(np.concatenate([layout.q[0], layout.q[1]]))
         # One slack per row under an exact penalty (MpcProgram): zero
         # whenever the hard constraints can be met; when they cannot (a person
         # walking into the robot faster than it can get away), the robot does
@@ -125,6 +136,30 @@ class DtCbfGroup(ConstraintGroup):
             self.cols = np.concatenate([self.cols, self.slack])
         else:
             self.rows = self.cols = np.zeros(0, dtype=int)
+
+    def SetGuard(self, positions, velocities, time_step):
+        """The measured humans for the first-step guard rows."""
+        self.guard_p0 = np.asarray(positions, dtype=float).reshape(-1, 2)
+        self.guard_p1 = self.guard_p0 + time_step * np.asarray(
+            velocities, dtype=float
+        ).reshape(-1, 2)
+
+    def _GuardRows(self, point):
+        """h(q_1, p0 + Δt v0) − (1 − γ) h(q_0, p0) and its q_0, q_1 gradients."""
+        kin = point.kin
+        ends = kin.capsule_points[:2, :, :, :2]  # knots 0, 1
+        jac = kin.capsule_jacobians[:2, :, :, :2, :]
+        A, B = ends[:, None, :, 0], ends[:, None, :, 1]  # (2, 1, C, 2)
+        P = np.stack([self.guard_p0, self.guard_p1])[:, :, None, :]  # (2, H, 1, 2)
+        d, s, nrm = point_segment_distance_2d(A, B, P)  # (2, H, C)
+        h = d - self._human_offset
+        JA, JB = jac[:, None, :, 0], jac[:, None, :, 1]
+        Jc = (1 - s)[..., None, None] * JA + s[..., None, None] * JB
+        dq = np.einsum("khci,khcin->khcn", nrm, Jc)  # (2, H, C, n)
+        a = 1.0 - self.gamma
+        g = h[1] - a * h[0]
+        vals = np.concatenate([-a * dq[0], dq[1]], axis=2)  # (H, C, 2n)
+        return g.ravel(), vals.ravel()
 
     def Barriers(self, point):
         """h at every knot: humans (K, H, C) and obstacles (K, S, C), with
@@ -176,10 +211,12 @@ class DtCbfGroup(ConstraintGroup):
         )  # (N, H, C, 2n + 4)
         obs = np.concatenate([-a * dq_obs[:-1], dq_obs[1:]], axis=3)  # (N, S, C, 2n)
         vals = np.concatenate([hum.reshape(N, -1), obs.reshape(N, -1)], axis=1)
-        return (
-            g.ravel() + point.z[self.slack],
-            np.concatenate([vals.ravel(), np.ones(self.num_rows)]),
-        )
+        g, vals = g.ravel(), vals.ravel()
+        if self.num_guard:
+            g_guard, vals_guard = self._GuardRows(point)
+            g = np.concatenate([g, g_guard])
+            vals = np.concatenate([vals, vals_guard])
+        return g + point.z[self.slack], np.concatenate([vals, np.ones(self.num_rows)])
 
     def MinimumBarrier(self, point) -> float:
         """The smallest h over the plan (diagnostics)."""

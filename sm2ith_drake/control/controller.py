@@ -46,6 +46,10 @@ class StepRecord:
     success: bool = True
     mode: str = "none"  # "solved" | "shifted_plan" | "brake"
     status: str = ""
+    # With ControllerConfig.check_predictions and the ORCA-KKT predictor:
+    # ‖a_QP − a_predicted‖ of every active human and prediction step, from
+    # re-solving each human's relaxed-ORCA QP at the planned states (m/s).
+    prediction_errors: np.ndarray | None = None
 
 
 @dataclass
@@ -221,6 +225,17 @@ class MpcController:
             self.robot.nu_upper,
         )
         record.wall_time = time.perf_counter() - start
+        if (
+            ok
+            and self.config.check_predictions
+            and self.predictor is not None
+            and self.predictor.name == "orca_kkt"
+        ):
+            from sm2ith_drake.humans.orca_kkt import PredictionConsistency
+
+            record.prediction_errors = PredictionConsistency(
+                self.predictor, solution.z, self.program.layout
+            ).ravel()
         new.record = record
         return new
 

@@ -322,6 +322,7 @@ class MpcProgram:
                 human_margin=safety.human_margin,
                 obstacle_segments=segments,
                 obstacle_margin=safety.obstacle_margin,
+                first_step_guard=safety.first_step_guard and predictor is not None,
             )
             nr = self.cbf.num_rows
             self.extra_constraints.append((self.cbf, np.zeros(nr), np.full(nr, np.inf)))
@@ -361,6 +362,8 @@ class MpcProgram:
         lower[L.nu[0]] = upper[L.nu[0]] = nu0
         if self.predictor is not None:
             self.predictor.ApplyBounds(lower, upper)
+            if self.cbf is not None and self.cbf.num_guard:
+                self.cbf.SetGuard(self.predictor.p0, self.predictor.v0, self.time_step)
         return lower, upper
 
     def MakePoint(self, z: np.ndarray, targets: dict) -> LinearizationPoint:

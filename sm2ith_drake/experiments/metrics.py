@@ -88,6 +88,15 @@ def SummarizeRun(log, robot, human_radii=None) -> dict:
         out["braking_fallbacks"] = c.braking_fallbacks
     if human_radii is not None:
         out.update(HumanMetrics(log, robot, human_radii))
+    errors = [
+        r.prediction_errors
+        for r in log.records
+        if getattr(r, "prediction_errors", None) is not None
+    ]
+    if errors:
+        e = np.concatenate(errors)
+        out["prediction_consistency"] = float(np.mean(e < 1e-2)) if e.size else 1.0
+        out["prediction_error_p95"] = float(np.percentile(e, 95)) if e.size else 0.0
     return out
 
 

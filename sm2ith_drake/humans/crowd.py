@@ -8,7 +8,9 @@ The crowd moves with time step Δt_c. Each human has a behaviour:
 - ``social_force``: Helbing's social force model, so a predictor is not only
   scored against its own model;
 - ``scripted``: walks its waypoints at its speed, ignoring everyone;
-- ``adversarial``: walks straight at the robot base (stopping at contact).
+- ``adversarial``: walks straight at the robot base, stopping 10 cm before
+  touching any robot body (base or arm), as a person blocking the robot
+  would.
 """
 
 from dataclasses import dataclass
@@ -17,6 +19,8 @@ import numpy as np
 
 # A waypoint counts as reached within this distance (m).
 WAYPOINT_TOLERANCE = 0.2
+# An adversarial person stops this far from the robot's bodies (m).
+ADVERSARY_STOP_GAP = 0.1
 
 
 @dataclass
@@ -58,6 +62,24 @@ def PreferredVelocities(humans, state: CrowdState, time: float):
     return v_pref, goals
 
 
+def _Gap(position, radius, robot_position, robot_radius, robot_bodies):
+    """Clearance between a person and the nearest robot body (m)."""
+    gap = np.linalg.norm(robot_position - position) - robot_radius - radius
+    if robot_bodies is not None:
+        segments, radii = robot_bodies
+        a, b = segments[:, 0], segments[:, 1]
+        ab = b - a
+        s = np.clip(
+            np.sum((position - a) * ab, axis=1)
+            / np.maximum(np.sum(ab * ab, axis=1), 1e-12),
+            0.0,
+            1.0,
+        )
+        d = np.linalg.norm(a + s[:, None] * ab - position, axis=1) - radii - radius
+        gap = min(gap, float(d.min()))
+    return gap
+
+
 def StepCrowd(
     humans,
     state: CrowdState,
@@ -70,8 +92,12 @@ def StepCrowd(
     obstacle_segments,
     tau: float,
     tau_obs: float,
+    robot_bodies=None,
 ) -> CrowdState:
-    """Advances every human by dt; returns the new state."""
+    """Advances every human by dt; returns the new state.
+
+    ``robot_bodies`` = (segments (C, 2, 2), radii (C,)): the robot's capsules
+    projected on the floor (default: the base disc)."""
     H = len(humans)
     p, v = state.positions.copy(), state.velocities.copy()
     radii = np.array([h.radius for h in humans], dtype=float)
@@ -86,11 +112,12 @@ def StepCrowd(
             new_v[j] = v_pref[j]
         elif h.behavior == "adversarial":
             d = robot_position - p[j]
-            gap = np.linalg.norm(d) - robot_radius - h.radius
-            if waiting or gap <= 0.05:
+            gap = _Gap(p[j], h.radius, robot_position, robot_radius, robot_bodies)
+            if waiting or gap <= ADVERSARY_STOP_GAP:
                 new_v[j] = 0.0
             else:
-                new_v[j] = d / np.linalg.norm(d) * min(h.speed, gap / dt)
+                step = min(h.speed, (gap - ADVERSARY_STOP_GAP) / dt)
+                new_v[j] = d / np.linalg.norm(d) * step
         elif h.behavior == "orca":
             from sm2ith_drake.humans.orca import orca_velocity
 

@@ -702,3 +702,36 @@ class _KktInequalities(ConstraintGroup):
         g = np.concatenate([c, e["lc"], mu * zeta], axis=-1)
         J = np.concatenate([dc, dlc, dmz], axis=2)
         return g.reshape(-1), b.Flatten(J, self.masks)
+
+
+def PredictionConsistency(predictor, z, layout) -> np.ndarray:
+    """The honest check of the KKT embedding: re-solve every active human's
+    relaxed-ORCA QP at the predicted states of plan z and return
+    ‖a_QP − a_predicted‖ for every (k, j) (m/s), shape (N, active)."""
+    from sm2ith_drake.humans.relaxed_orca import relaxed_orca_action
+
+    cfg = predictor.config
+    p, v, rp, rv = predictor.LocalState(z, layout)
+    n, rho, no, rho_o = predictor.HalfPlanes(p, v, rp, rv)
+    a = z[predictor.a]
+    active = np.nonzero(predictor.active)[0]
+    errors = np.zeros((predictor.N, len(active)))
+    for k in range(predictor.N):
+        for col, j in enumerate(active):
+            sol = relaxed_orca_action(
+                predictor.v_pref[j],
+                v[k, j],
+                n[k, j],
+                rho[k, j],
+                max_speed=cfg.max_speed,
+                max_accel=cfg.max_acceleration,
+                time_step=predictor.dt,
+                slack_weights=(
+                    cfg.slack_weight_acceleration,
+                    cfg.slack_weight_velocity,
+                ),
+                static_normals=no[k, j],
+                static_offsets=rho_o[k, j],
+            )
+            errors[k, col] = np.linalg.norm(sol.velocity - a[k, j])
+    return errors

@@ -105,10 +105,12 @@ class HumanTracks:
     tracks: dict = field(default_factory=dict)
     rejected_count: int = 0
     dropped_count: int = 0
+    last_frame_time: float = -np.inf
 
     def Step(self, time: float, detections: dict) -> None:
         """Predicts every track to ``time`` and fuses ``detections``
         ({id: (x, y)})."""
+        self.last_frame_time = time
         for track in self.tracks.values():
             track.Predict(time)
         for hid, z in detections.items():
@@ -140,9 +142,17 @@ class HumanTracks:
             del self.tracks[hid]
             self.dropped_count += 1
 
-    def Estimates(self):
-        """(ids, positions (H, 2), velocities (H, 2)) of the live tracks."""
+    def Estimates(self, time: float | None = None):
+        """(ids, positions (H, 2), velocities (H, 2)) of the live tracks,
+        predicted to ``time`` if given (constant velocity)."""
         ids = np.array(sorted(self.tracks), dtype=int)
-        pos = np.array([self.tracks[h].position for h in ids]).reshape(-1, 2)
+        pos = np.array(
+            [
+                self.tracks[h].position
+                + (0.0 if time is None else max(0.0, time - self.tracks[h].last_time))
+                * self.tracks[h].velocity
+                for h in ids
+            ]
+        ).reshape(-1, 2)
         vel = np.array([self.tracks[h].velocity for h in ids]).reshape(-1, 2)
         return ids, pos, vel

@@ -71,6 +71,8 @@ class CrowdSimulator(LeafSystem):
         x = self._x.Eval(context)
         q, nu = x[: self._n], x[self._n :]
         qdot = self._robot.G(q) @ nu
+        kin = self._robot.CalcKinematics(q)
+        bodies = (kin.capsule_points[0, :, :, :2], self._robot.capsule_radii)
         new = StepCrowd(
             self._humans,
             copy.deepcopy(crowd),
@@ -82,6 +84,7 @@ class CrowdSimulator(LeafSystem):
             obstacle_segments=self._segments,
             tau=self._tau,
             tau_obs=self._tau_obs,
+            robot_bodies=bodies,
         )
         state.get_mutable_abstract_state(self._state).set_value(new)
 
@@ -189,12 +192,16 @@ class HumanEstimator(LeafSystem):
         )
 
     def _Update(self, context, state):
-        tracks = copy.deepcopy(context.get_abstract_state(self._tracks).get_value())
         frame = self._detections.Eval(context)
+        tracks = context.get_abstract_state(self._tracks).get_value()
+        if frame.time <= tracks.last_frame_time:
+            return  # no new frame since the last update
+        tracks = copy.deepcopy(tracks)
         detections = {
             int(i): p for i, p in zip(frame.ids, frame.positions, strict=True)
         }
-        tracks.Step(context.get_time(), detections)
+        # Fused at the time the frame was taken, not when it is read.
+        tracks.Step(frame.time, detections)
         state.get_mutable_abstract_state(self._tracks).set_value(tracks)
 
     def GetTracks(self, context):
@@ -202,7 +209,7 @@ class HumanEstimator(LeafSystem):
 
     def _Output(self, context, output):
         tracks = self.GetTracks(context)
-        ids, positions, velocities = tracks.Estimates()
+        ids, positions, velocities = tracks.Estimates(context.get_time())
         output.set_value(
             HumanEstimate(ids=ids, positions=positions, velocities=velocities)
         )

@@ -1,0 +1,189 @@
+"""Human estimation and the simulated crowd: Kalman tracking, motion capture,
+the social force model and the crowd behaviours."""
+
+import numpy as np
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+
+from sm2ith_drake.humans.crowd import InitialCrowdState, StepCrowd
+from sm2ith_drake.humans.social_force import social_force_step
+from sm2ith_drake.humans.tracking import HumanTracks
+from sm2ith_drake.scenario import HumanConfig
+from sm2ith_drake.systems.humans import HumanDetections, HumanEstimator, MocapSensor
+
+
+def _Walker(t):
+    return np.array([-2.0, 1.0]) + t * np.array([0.8, -0.3])
+
+
+def test_kalman_converges_on_a_noisy_constant_velocity_walker():
+    rng = np.random.default_rng(0)
+    tracks = HumanTracks(measurement_noise=0.05, acceleration_noise=0.2)
+    velocity_errors, position_errors = [], []
+    for i in range(300):
+        t = 0.05 * i
+        tracks.Step(t, {7: _Walker(t) + rng.normal(scale=0.05, size=2)})
+        ids, pos, vel = tracks.Estimates()
+        velocity_errors.append(np.linalg.norm(vel[0] - [0.8, -0.3]))
+        position_errors.append(np.linalg.norm(pos[0] - _Walker(t)))
+    assert list(ids) == [7]
+    # Starting from zero velocity, it converges within a few seconds, and
+    # filters the 5 cm noise down.
+    assert velocity_errors[0] > 0.8
+    assert np.mean(velocity_errors[-100:]) < 0.1
+    assert np.mean(position_errors[-100:]) < 0.03
+
+
+def test_covariance_grows_during_dropouts_and_the_track_times_out():
+    tracks = HumanTracks(measurement_noise=0.02, acceleration_noise=1.0, timeout=1.0)
+    for i in range(40):
+        tracks.Step(0.05 * i, {3: _Walker(0.05 * i)})
+    traces = []
+    for i in range(40, 58):  # 0.9 s without detections
+        tracks.Step(0.05 * i, {})
+        traces.append(np.trace(tracks.tracks[3].P))
+    assert np.all(np.diff(traces) > 0)
+    # Predicting through the gap keeps the walker's motion.
+    np.testing.assert_allclose(tracks.tracks[3].position, _Walker(0.05 * 57), atol=0.05)
+    tracks.Step(0.05 * 62, {})  # past the timeout
+    assert 3 not in tracks.tracks and tracks.dropped_count == 1
+
+
+def test_bad_detections_are_rejected_and_counted():
+    tracks = HumanTracks(measurement_noise=0.02)
+    tracks.Step(0.0, {1: [0.0, 0.0], 2: [np.nan, 1.0], 3: [1e9, 0.0]})
+    assert sorted(tracks.tracks) == [1] and tracks.rejected_count == 2
+    tracks.Step(0.05, {1: [40.0, 0.0]})  # an implausible jump (innovation gate)
+    assert tracks.rejected_count == 3
+    np.testing.assert_allclose(tracks.tracks[1].position, [0.0, 0.0], atol=1e-9)
+    # New and vanished humans.
+    tracks.Step(0.1, {1: [0.0, 0.0], 5: [2.0, 2.0]})
+    assert sorted(tracks.tracks) == [1, 5]
+
+
+def test_mocap_and_estimator_systems_in_a_diagram():
+    """MocapSensor (noise, 30 % dropouts) feeding the HumanEstimator tracks a
+    walker; the same seed gives the same estimate."""
+    from pydrake.common.value import AbstractValue
+    from pydrake.systems.framework import LeafSystem
+
+    from sm2ith_drake.humans.predictors import HumanEstimate
+
+    class Truth(LeafSystem):
+        def __init__(self):
+            super().__init__()
+            self.DeclareAbstractOutputPort(
+                "human_truth",
+                lambda: AbstractValue.Make(HumanEstimate()),
+                lambda context, out: out.set_value(
+                    HumanEstimate(
+                        ids=[4],
+                        positions=[_Walker(context.get_time())],
+                        velocities=[[0.8, -0.3]],
+                    )
+                ),
+            )
+
+    def Run(seed):
+        builder = DiagramBuilder()
+        truth = builder.AddSystem(Truth())
+        sensor = builder.AddSystem(
+            MocapSensor(period=0.05, noise=0.03, dropout_probability=0.3, seed=seed)
+        )
+        est = builder.AddSystem(
+            HumanEstimator(
+                period=0.05,
+                measurement_noise=0.03,
+                acceleration_noise=0.2,
+                track_timeout=1.0,
+            )
+        )
+        builder.Connect(truth.get_output_port(), sensor.GetInputPort("human_truth"))
+        builder.Connect(
+            sensor.GetOutputPort("detections"), est.GetInputPort("detections")
+        )
+        diagram = builder.Build()
+        sim = Simulator(diagram)
+        sim.AdvanceTo(8.0)
+        ctx = est.GetMyContextFromRoot(sim.get_context())
+        frame = sensor.GetOutputPort("detections").Eval(
+            sensor.GetMyContextFromRoot(sim.get_context())
+        )
+        assert isinstance(frame, HumanDetections)
+        return est.GetOutputPort("human_estimate").Eval(ctx)
+
+    a, b = Run(1), Run(1)
+    np.testing.assert_array_equal(a.positions, b.positions)
+    np.testing.assert_allclose(a.velocities[0], [0.8, -0.3], atol=0.15)
+    np.testing.assert_allclose(a.positions[0], _Walker(8.0), atol=0.1)
+
+
+def test_social_force_reaches_goals_and_keeps_people_apart():
+    p = np.array([[0.0, 0.0], [6.0, 0.05]])
+    v = np.zeros((2, 2))
+    goals = np.array([[6.0, 0.0], [0.0, 0.0]])
+    radii = np.array([0.3, 0.3])
+    gaps = []
+    for _ in range(400):
+        p, v = social_force_step(p, v, goals, radii, dt=0.05, max_speeds=[1.0, 1.0])
+        gaps.append(np.linalg.norm(p[0] - p[1]) - 0.6)
+    assert min(gaps) > 0.0
+    np.testing.assert_allclose(p, goals, atol=0.25)
+
+
+def test_social_force_wall_pushes_away():
+    p = np.array([[0.0, 0.35]])
+    wall = [np.array([[-5.0, 0.0], [5.0, 0.0]])]
+    p2, v2 = social_force_step(
+        p, np.zeros((1, 2)), np.array([[0.0, 0.35]]), [0.3], dt=0.05, obstacles=wall
+    )
+    assert v2[0, 1] > 0 and abs(v2[0, 0]) < 1e-9
+
+
+def _Crowd(humans, steps, robot=(10.0, 10.0), obstacles=()):
+    state = InitialCrowdState(humans)
+    trace = [state.positions.copy()]
+    for i in range(steps):
+        state = StepCrowd(
+            humans,
+            state,
+            time=0.05 * i,
+            dt=0.05,
+            robot_position=robot,
+            robot_velocity=[0.0, 0.0],
+            robot_radius=0.5,
+            obstacle_segments=np.asarray(obstacles).reshape(-1, 2, 2),
+            tau=2.0,
+            tau_obs=0.5,
+        )
+        trace.append(state.positions.copy())
+    return np.array(trace)
+
+
+def test_orca_crowd_passes_without_contact():
+    humans = [
+        HumanConfig(behavior="orca", start=[0, 0], waypoints=[[6, 0]]),
+        HumanConfig(behavior="orca", start=[6, 0.1], waypoints=[[0, 0.1]]),
+        HumanConfig(behavior="orca", start=[3, -3], waypoints=[[3, 3]]),
+    ]
+    trace = _Crowd(humans, 200)
+    for i in range(3):
+        for j in range(i):
+            assert (
+                np.min(np.linalg.norm(trace[:, i] - trace[:, j], axis=1)) > 0.6 - 1e-3
+            )
+    np.testing.assert_allclose(trace[-1], [[6, 0], [0, 0.1], [3, 3]], atol=0.25)
+
+
+def test_scripted_and_adversarial_behaviours():
+    scripted = HumanConfig(
+        behavior="scripted", start=[0, 0], waypoints=[[2, 0], [2, 2]], speed=1.0
+    )
+    trace = _Crowd([scripted], 200)
+    np.testing.assert_allclose(trace[-1, 0], [2, 2], atol=0.05)
+    # Straight at the robot, stopping at contact.
+    adversary = HumanConfig(behavior="adversarial", start=[0, 0], speed=1.0)
+    trace = _Crowd([adversary], 200, robot=(4.0, 0.0))
+    gap = np.linalg.norm(trace[:, 0] - [4.0, 0.0], axis=1) - 0.5 - adversary.radius
+    assert np.all(gap >= 0.1 - 1e-9) and gap[-1] < 0.15
+    assert np.all(np.abs(trace[:, 0, 1]) < 1e-9)
