@@ -23,8 +23,9 @@ def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--meshcat", action="store_true")
     parser.add_argument("--duration", type=float, default=10.0)
-    parser.add_argument("--predictor", default="orca_kkt",
-                        choices=["orca_kkt", "cvmm", "react"])
+    parser.add_argument(
+        "--predictor", default="orca_kkt", choices=["orca_kkt", "cvmm", "react"]
+    )
     args = parser.parse_args()
 
     scenario = Scenario(
@@ -38,8 +39,9 @@ def main():
         # Two people crossing, reacting to the robot and each other (ORCA).
         humans=[
             HumanConfig(behavior="orca", start=[2.5, 3.0], waypoints=[[2.5, -3.0]]),
-            HumanConfig(behavior="orca", start=[3.5, -3.0], waypoints=[[3.5, 3.0]],
-                        speed=0.8),
+            HumanConfig(
+                behavior="orca", start=[3.5, -3.0], waypoints=[[3.5, 3.0]], speed=0.8
+            ),
         ],
         prediction=PredictionConfig(predictor=args.predictor, max_humans=2),
         safety=SafetyConfig(gamma=0.3, human_margin=0.1),
