@@ -97,7 +97,13 @@ def _WriteGraphviz(diagram, path: str) -> None:
     graph.write(path, format=fmt)
 
 
-def BenchmarkScenario(robot: str, humans: int, predictor: str, solver: str = "rti"):
+def BenchmarkScenario(
+    robot: str,
+    humans: int,
+    predictor: str,
+    solver: str = "rti",
+    rti_iterations: int | None = None,
+):
     from sm2ith_drake.resources import GetDiagramsDir
     from sm2ith_drake.scenario import HumanConfig
 
@@ -127,6 +133,10 @@ def BenchmarkScenario(robot: str, humans: int, predictor: str, solver: str = "rt
     if humans and predictor == "orca_kkt":
         # As the shipped crowd scenarios: two SQP passes for the KKT model.
         scenario.controller.rti_iterations = 2
+    if rti_iterations is not None:
+        if rti_iterations < 1:
+            raise UserError("--rti_iterations must be ≥ 1")
+        scenario.controller.rti_iterations = rti_iterations
     return scenario
 
 
@@ -137,12 +147,13 @@ def RunBenchmark(
     predictor: str = "orca_kkt",
     steps: int = 100,
     solver: str = "rti",
+    rti_iterations: int | None = None,
 ) -> dict:
     """Runs the benchmark closed loop; returns the per-step timing figures."""
     from sm2ith_drake.diagrams import RunSimulation
     from sm2ith_drake.scenario import ControlPeriod
 
-    scenario = BenchmarkScenario(robot, humans, predictor, solver)
+    scenario = BenchmarkScenario(robot, humans, predictor, solver, rti_iterations)
     # The logger sees a step at its next sample: run a little past step K
     # and keep the first K.
     duration = (steps + 0.5) * ControlPeriod(scenario.controller)
@@ -155,6 +166,7 @@ def RunBenchmark(
         "humans": humans,
         "predictor": predictor if humans else "none",
         "solver": solver,
+        "rti_iterations": scenario.controller.rti_iterations,
         "steps": len(records),
         "median_ms": float(np.median(wall)),
         "p95_ms": float(np.percentile(wall, 95)),
@@ -181,6 +193,7 @@ def _Bench(args) -> int:
             predictor=args.predictor,
             steps=args.steps,
             solver=args.solver,
+            rti_iterations=args.rti_iterations,
         )
         results.append(r)
         iters = r["mean_iterations"]
@@ -258,6 +271,12 @@ def MakeParser() -> argparse.ArgumentParser:
     )
     bench.add_argument("--steps", type=int, default=100)
     bench.add_argument("--solver", default="rti", choices=["rti", "snopt", "ipopt"])
+    bench.add_argument(
+        "--rti_iterations",
+        type=int,
+        default=None,
+        help="SQP passes per step (default: 1; 2 with orca_kkt)",
+    )
     bench.add_argument("--json", default=None, help="write the figures as JSON")
     bench.set_defaults(func=_Bench)
     return parser

@@ -132,3 +132,49 @@ def test_every_shipped_scenario_runs_closed_loop(filename, name):
         heading = states[:-1, 2] + 0.5 * np.diff(states[:, 2])
         sideways = -np.sin(heading) * step[:, 0] + np.cos(heading) * step[:, 1]
         assert np.max(np.abs(sideways)) < 1e-3 * max(1.0, np.diff(times).max())
+
+
+def test_bench_writes_the_documented_json(tmp_path):
+    """`sm2ith bench` with people writes every documented key (timing is a
+    measurement, not asserted)."""
+    import json
+
+    out = tmp_path / "bench.json"
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "sm2ith_drake.cli",
+            "bench",
+            "--robot",
+            "stretch3",
+            "--humans",
+            "1",
+            "--predictor",
+            "cvmm",
+            "--steps",
+            "5",
+            "--json",
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert result.returncode == 0, result.stderr[-2000:]
+    data = json.loads(out.read_text())
+    for key in (
+        "median_ms",
+        "p95_ms",
+        "max_ms",
+        "mean_iterations",
+        "solver_failures",
+        "fallbacks",
+        "steps",
+        "robot",
+        "humans",
+        "predictor",
+    ):
+        assert key in data, key
+    assert data["steps"] == 5 and data["humans"] == 1 and data["predictor"] == "cvmm"
+    assert data["p95_ms"] >= data["median_ms"] > 0
