@@ -72,6 +72,25 @@ def _DistSqPointSegment(a, b, c):
     return float(np.dot(d, d))
 
 
+def _LeftLeg(rel, dist_sq, radius):
+    """Direction of the left tangent from the agent to a disc of ``radius``
+    at relative position ``rel`` (RVO2's left leg)."""
+    leg = np.sqrt(dist_sq - radius * radius)
+    return (
+        np.array([rel[0] * leg - rel[1] * radius, rel[0] * radius + rel[1] * leg])
+        / dist_sq
+    )
+
+
+def _RightLeg(rel, dist_sq, radius):
+    """Direction of the right tangent (RVO2's right leg)."""
+    leg = np.sqrt(dist_sq - radius * radius)
+    return (
+        np.array([rel[0] * leg + rel[1] * radius, -rel[0] * radius + rel[1] * leg])
+        / dist_sq
+    )
+
+
 def _ObstacleLines(position, velocity, radius, vertices, tau_obs, range_sq):
     """RVO2's obstacle ORCA lines (Agent::computeNewVelocity, first part)."""
     lines = []
@@ -126,75 +145,25 @@ def _ObstacleLines(position, velocity, radius, vertices, tau_obs, range_sq):
             if not obstacle1.is_convex:
                 continue
             obstacle2 = obstacle1
-            leg1 = np.sqrt(dist_sq1 - radius_sq)
-            left_leg = (
-                np.array(
-                    [
-                        rel1[0] * leg1 - rel1[1] * radius,
-                        rel1[0] * radius + rel1[1] * leg1,
-                    ]
-                )
-                / dist_sq1
-            )
-            right_leg = (
-                np.array(
-                    [
-                        rel1[0] * leg1 + rel1[1] * radius,
-                        -rel1[0] * radius + rel1[1] * leg1,
-                    ]
-                )
-                / dist_sq1
-            )
+            left_leg = _LeftLeg(rel1, dist_sq1, radius)
+            right_leg = _RightLeg(rel1, dist_sq1, radius)
         elif s > 1.0 and dist_sq_line <= radius_sq:
             if not obstacle2.is_convex:
                 continue
             obstacle1 = obstacle2
-            leg2 = np.sqrt(dist_sq2 - radius_sq)
+            left_leg = _LeftLeg(rel2, dist_sq2, radius)
+            right_leg = _RightLeg(rel2, dist_sq2, radius)
+        else:
             left_leg = (
-                np.array(
-                    [
-                        rel2[0] * leg2 - rel2[1] * radius,
-                        rel2[0] * radius + rel2[1] * leg2,
-                    ]
-                )
-                / dist_sq2
+                _LeftLeg(rel1, dist_sq1, radius)
+                if obstacle1.is_convex
+                else -obstacle1.unit_dir
             )
             right_leg = (
-                np.array(
-                    [
-                        rel2[0] * leg2 + rel2[1] * radius,
-                        -rel2[0] * radius + rel2[1] * leg2,
-                    ]
-                )
-                / dist_sq2
+                _RightLeg(rel2, dist_sq2, radius)
+                if obstacle2.is_convex
+                else obstacle1.unit_dir
             )
-        else:
-            if obstacle1.is_convex:
-                leg1 = np.sqrt(dist_sq1 - radius_sq)
-                left_leg = (
-                    np.array(
-                        [
-                            rel1[0] * leg1 - rel1[1] * radius,
-                            rel1[0] * radius + rel1[1] * leg1,
-                        ]
-                    )
-                    / dist_sq1
-                )
-            else:
-                left_leg = -obstacle1.unit_dir
-            if obstacle2.is_convex:
-                leg2 = np.sqrt(dist_sq2 - radius_sq)
-                right_leg = (
-                    np.array(
-                        [
-                            rel2[0] * leg2 + rel2[1] * radius,
-                            -rel2[0] * radius + rel2[1] * leg2,
-                        ]
-                    )
-                    / dist_sq2
-                )
-            else:
-                right_leg = obstacle1.unit_dir
         left_neighbor = obstacle1.prev
         left_foreign = right_foreign = False
         if obstacle1.is_convex and _Det(left_leg, -left_neighbor.unit_dir) >= 0.0:

@@ -314,12 +314,29 @@ class OrcaKkt(Predictor):
         z[self.p[0]] = self.p0
         self.ForwardSimulate(z, self.layout)
 
-    def ForwardSimulate(self, z, layout):
-        """Rolls the humans forward with the standalone relaxed-ORCA QP
-        (humans/orca.py), the robot fixed at z's plan; fills a, p, ζ, λ, μ."""
+    def SolveHumanQp(self, j, v, n, rho, no, rho_o):
+        """Human j's relaxed-ORCA QP (humans/relaxed_orca.py) with its current
+        velocity v and half-planes (agents n, ρ; static no, ρ_o)."""
         from sm2ith_drake.humans.relaxed_orca import relaxed_orca_action
 
         cfg = self.config
+        return relaxed_orca_action(
+            self.v_pref[j],
+            v,
+            n,
+            rho,
+            max_speed=cfg.max_speed,
+            max_accel=cfg.max_acceleration,
+            time_step=self.dt,
+            slack_weights=(cfg.slack_weight_acceleration, cfg.slack_weight_velocity),
+            static_normals=no,
+            static_offsets=rho_o,
+        )
+
+    def ForwardSimulate(self, z, layout):
+        """Rolls the humans forward with the standalone relaxed-ORCA QP
+        (humans/orca.py), the robot fixed at z's plan; fills a, p, ζ, λ, μ."""
+
         rp_all, rv_all = self._RobotStates(z, layout)
         v = self.v0.copy()
         for k in range(self.N):
@@ -333,20 +350,8 @@ class OrcaKkt(Predictor):
                     for idx in (self.zeta_a, self.zeta_v, self.lam, self.mu):
                         z[idx[k, j]] = 0.0
                     continue
-                sol = relaxed_orca_action(
-                    self.v_pref[j],
-                    v[j],
-                    n[0, j],
-                    rho[0, j],
-                    max_speed=cfg.max_speed,
-                    max_accel=cfg.max_acceleration,
-                    time_step=self.dt,
-                    slack_weights=(
-                        cfg.slack_weight_acceleration,
-                        cfg.slack_weight_velocity,
-                    ),
-                    static_normals=no[0, j],
-                    static_offsets=rho_o[0, j],
+                sol = self.SolveHumanQp(
+                    j, v[j], n[0, j], rho[0, j], no[0, j], rho_o[0, j]
                 )
                 a[j] = sol.velocity
                 z[self.zeta_a[k, j]] = sol.slack_acceleration
@@ -708,9 +713,7 @@ def PredictionConsistency(predictor, z, layout) -> np.ndarray:
     """The honest check of the KKT embedding: re-solve every active human's
     relaxed-ORCA QP at the predicted states of plan z and return
     ‖a_QP − a_predicted‖ for every (k, j) (m/s), shape (N, active)."""
-    from sm2ith_drake.humans.relaxed_orca import relaxed_orca_action
 
-    cfg = predictor.config
     p, v, rp, rv = predictor.LocalState(z, layout)
     n, rho, no, rho_o = predictor.HalfPlanes(p, v, rp, rv)
     a = z[predictor.a]
@@ -718,20 +721,8 @@ def PredictionConsistency(predictor, z, layout) -> np.ndarray:
     errors = np.zeros((predictor.N, len(active)))
     for k in range(predictor.N):
         for col, j in enumerate(active):
-            sol = relaxed_orca_action(
-                predictor.v_pref[j],
-                v[k, j],
-                n[k, j],
-                rho[k, j],
-                max_speed=cfg.max_speed,
-                max_accel=cfg.max_acceleration,
-                time_step=predictor.dt,
-                slack_weights=(
-                    cfg.slack_weight_acceleration,
-                    cfg.slack_weight_velocity,
-                ),
-                static_normals=no[k, j],
-                static_offsets=rho_o[k, j],
+            sol = predictor.SolveHumanQp(
+                j, v[k, j], n[k, j], rho[k, j], no[k, j], rho_o[k, j]
             )
             errors[k, col] = np.linalg.norm(sol.velocity - a[k, j])
     return errors
