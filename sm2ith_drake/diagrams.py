@@ -74,7 +74,10 @@ def MakeSimulation(
             robot, initial_q=q0, initial_nu=nu0, time_step=scenario.robot_time_step
         ),
     )
-    planner = builder.AddNamedSystem("planner", TaskPlanner(tasks, num_states=n + m))
+    planner = builder.AddNamedSystem(
+        "planner",
+        TaskPlanner(tasks, num_states=n + m, robot=robot, sequence=scenario.sequence),
+    )
     has_humans = bool(scenario.humans)
     segments = ObstacleSegments(scenario.obstacles)
     controller = builder.AddNamedSystem(
@@ -321,4 +324,10 @@ def RunSimulation(
         controller.controller.robot,
         human_radii=[h.radius for h in scenario.humans] if scenario.humans else None,
     )
+    if scenario.sequence:
+        planner = diagram.GetSubsystemByName("planner")
+        seq = planner.GetSequenceState(planner.GetMyContextFromRoot(context))
+        metrics["phases_completed"] = len(seq.completed_at)
+        if len(seq.completed_at) == len(scenario.sequence):
+            metrics["sequence_time"] = float(seq.completed_at[-1])
     return RunResult(log=log, metrics=metrics, diagram=diagram, html_path=saved)

@@ -212,6 +212,21 @@ class VisualizationConfig:
 
 
 @dataclass
+class PhaseConfig:
+    """One phase of a task sequence (e.g. "reach the pick pose")."""
+
+    name: str = ""
+    # New targets by task name (tasks not listed keep their targets).
+    targets: dict[str, list[float]] = field(default_factory=dict)
+    # The phase is done when every listed task's error norm stays within
+    # ``tolerance`` for ``hold_time`` seconds (empty: all tasks with targets
+    # in this phase).
+    done_when: list[str] = field(default_factory=list)
+    tolerance: float = 0.05
+    hold_time: float = 0.5
+
+
+@dataclass
 class Scenario:
     """Everything a run needs."""
 
@@ -233,6 +248,9 @@ class Scenario:
     prediction: PredictionConfig = field(default_factory=PredictionConfig)
     safety: SafetyConfig = field(default_factory=SafetyConfig)
     perception: PerceptionConfig = field(default_factory=PerceptionConfig)
+    # A task sequence (pick-and-place…): phases run in order; after the last
+    # its targets stay. Empty: the tasks keep their targets.
+    sequence: list[PhaseConfig] = field(default_factory=list)
 
 
 class ScenarioError(ValueError):
@@ -308,6 +326,16 @@ def ValidateScenario(scenario: Scenario) -> None:
         )
     if not scenario.tasks:
         raise ScenarioError("a scenario needs at least one task")
+    names = {t.name or t.kind for t in scenario.tasks}
+    for i, phase in enumerate(scenario.sequence):
+        unknown = (set(phase.targets) | set(phase.done_when)) - names
+        if unknown:
+            raise ScenarioError(
+                f"sequence[{i}] names unknown tasks {sorted(unknown)}; "
+                f"tasks: {sorted(names)}"
+            )
+        if phase.tolerance <= 0 or phase.hold_time < 0:
+            raise ScenarioError(f"sequence[{i}]: tolerance > 0 and hold_time ≥ 0")
     for i, h in enumerate(scenario.humans):
         if h.behavior not in HUMAN_BEHAVIORS:
             raise ScenarioError(
