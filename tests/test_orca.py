@@ -188,7 +188,9 @@ def test_against_rvo2_on_random_scenes():
 
 
 def test_vectorized_agent_lines_match_the_reference():
-    """The MPC's vectorized ORCA geometry equals the reference lines."""
+    """The MPC's half-planes (normal form, shares, per-pair batching over
+    (k, j, i)) equal the reference lines; the shared geometry itself is held
+    against RVO2 above."""
     rng = np.random.default_rng(5)
     for trial in range(300):
         P, V, R, _, _ = _RandomScene(rng, trial)

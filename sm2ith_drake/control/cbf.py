@@ -217,9 +217,3 @@ class DtCbfGroup(ConstraintGroup):
             g = np.concatenate([g, g_guard])
             vals = np.concatenate([vals, vals_guard])
         return g + point.z[self.slack], np.concatenate([vals, np.ones(self.num_rows)])
-
-    def MinimumBarrier(self, point) -> float:
-        """The smallest h over the plan (diagnostics)."""
-        h_hum, _, _, h_obs, _ = self.Barriers(point)
-        values = [h.min() for h in (h_hum, h_obs) if h.size]
-        return float(min(values)) if values else np.inf

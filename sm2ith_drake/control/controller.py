@@ -18,7 +18,7 @@ import numpy as np
 from sm2ith_drake.control.htmpc import HierarchicalSolver, MpcSolution
 from sm2ith_drake.control.program import MpcProgram
 from sm2ith_drake.control.tasks import MakeTask
-from sm2ith_drake.scenario import ControllerConfig, ControlPeriod
+from sm2ith_drake.scenario import ControllerConfig, ControlPeriod, SafetyConfig
 
 # A replayed plan is consistent while the measured ν is this close (per
 # component) to the ν the plan predicted for now.
@@ -111,6 +111,7 @@ class MpcController:
                 time_step=config.time_step,
                 robot=robot,
                 obstacles=segments,
+                human_radius=(safety or SafetyConfig()).human_radius,
             )
         self.program = MpcProgram(
             robot=robot,

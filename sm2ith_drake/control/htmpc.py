@@ -133,12 +133,15 @@ class _Qp:
         perm, indices, indptr, rows = block
         return sp.csc_matrix((a_values[perm], indices, indptr), (rows, self.n))
 
-    def Solve(self, P_dense, q, a_values, x_lower, x_upper, lower, upper):
+    @property
+    def p_pattern(self):
+        """The (row, column) of every stored entry of P's upper triangle, in
+        the order :meth:`Solve` expects its values."""
+        return self._p_indices, self._p_cols
+
+    def Solve(self, p_values, q, a_values, x_lower, x_upper, lower, upper):
         """Returns (x, status, iterations); x is None if nothing usable."""
-        P = sp.csc_matrix(
-            (P_dense[self._p_indices, self._p_cols], self._p_indices, self._p_indptr),
-            (self.n, self.n),
-        )
+        P = sp.csc_matrix((p_values, self._p_indices, self._p_indptr), (self.n, self.n))
         A = self._Matrix(a_values, self._blocks[0])
         G = self._Matrix(a_values, self._blocks[1])
         b = lower[self._eq_rows]
@@ -233,6 +236,21 @@ class RtiStageSolver:
             equality_rows=equality_rows,
             settings=settings,
         )
+        # The cost Hessian is only nonzero on the diagonal and among the
+        # (few) columns the cost groups touch: it is assembled there, small
+        # and dense, then gathered into P's pattern.
+        cost_cols = np.unique(
+            np.concatenate([g.cols for g, _ in self._cost] + [np.zeros(0, dtype=int)])
+        )
+        local = np.full(nv, -1)
+        local[cost_cols] = np.arange(cost_cols.size)
+        self._cost_cols = cost_cols
+        self._cost_local = [local[g.cols] for g, _ in self._cost]
+        prow, pcol = self._qp.p_pattern
+        self._p_row_local, self._p_col_local = local[prow], local[pcol]
+        self._p_in_cost = (self._p_row_local >= 0) & (self._p_col_local >= 0)
+        self._p_diag = prow == pcol
+        self._p_diag_index = prow[self._p_diag]
 
     def Solve(self, point, *, lower, upper, lex_bounds: dict, linearizations: dict):
         """One QP at ``point``. ``lex_bounds`` maps task names to |e*| + tol;
@@ -245,17 +263,25 @@ class RtiStageSolver:
                 linearizations[key] = _Linearize(group, point, nv)
             return linearizations[key]
 
-        P = np.zeros((nv, nv))
-        qvec = np.zeros(nv)
-        for group, scale in self._cost:
+        nc = self._cost_cols.size
+        P_cost = np.zeros((nc, nc))
+        q_cost = np.zeros(nc)
+        for (group, scale), local in zip(self._cost, self._cost_local, strict=True):
             vals, c = lin(group)
             w = scale * group.task.StageWeights(program.layout.N).ravel()
-            J = group.DenseJacobian(vals, nv)
+            J = np.zeros((group.num_rows, nc))
+            np.add.at(J, (group.rows, local), vals)
             WJ = w[:, None] * J
-            P += J.T @ WJ
-            qvec += WJ.T @ c
+            P_cost += J.T @ WJ
+            q_cost += WJ.T @ c
         rho = self.proximal_weight
-        P[np.diag_indices(nv)] += program.effort_diagonal + rho
+        p_values = np.zeros(self._p_diag.size)
+        p_values[self._p_in_cost] = P_cost[
+            self._p_row_local[self._p_in_cost], self._p_col_local[self._p_in_cost]
+        ]
+        p_values[self._p_diag] += (program.effort_diagonal + rho)[self._p_diag_index]
+        qvec = np.zeros(nv)
+        qvec[self._cost_cols] = q_cost
         qvec -= rho * point.z
         qvec += program.linear_cost
         a_vals, lo, hi = [], [], []
@@ -271,7 +297,7 @@ class RtiStageSolver:
             lo.append(-b - c)
             hi.append(b - c)
         x, status, iters = self._qp.Solve(
-            P,
+            p_values,
             qvec,
             np.concatenate(a_vals),
             lower,

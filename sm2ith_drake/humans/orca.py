@@ -22,6 +22,8 @@ lines (walls, boxes apart from each other) are unaffected.
 import numpy as np
 
 RVO_EPSILON = 1e-5
+# Guards divisions in the vectorized agent lines (degenerate geometry only).
+_EPS = 1e-9
 
 
 def _Det(a, b):
@@ -252,46 +254,71 @@ def _ObstacleLines(position, velocity, radius, vertices, tau_obs, range_sq):
     return lines
 
 
-def _AgentLine(position, velocity, radius, other_p, other_v, other_r, tau, dt, share):
-    """One agent-agent ORCA line (Agent::computeNewVelocity, second part)."""
-    rel_p = other_p - position
-    rel_v = velocity - other_v
-    dist_sq = float(rel_p @ rel_p)
-    R = radius + other_r
+def _DetVec(a, b):
+    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+
+def orca_agent_lines(rel_position, rel_velocity, combined_radius, *, tau, time_step):
+    """ORCA's u and line direction for many agent pairs at once (RVO2's
+    Agent::computeNewVelocity, agent part), vectorized.
+
+    Args:
+        rel_position: (..., 2) other agent's position minus this agent's.
+        rel_velocity: (..., 2) this agent's velocity minus the other's.
+        combined_radius: (...,) sum of the radii.
+
+    Returns:
+        u (..., 2), the smallest change of relative velocity to leave the
+        velocity obstacle, and direction (..., 2) of the ORCA line. The line
+        passes through v + share·u; allowed velocities lie to its left.
+    """
+    P = np.asarray(rel_position, dtype=float)
+    V = np.asarray(rel_velocity, dtype=float)
+    R = np.broadcast_to(np.asarray(combined_radius, dtype=float), P.shape[:-1])
+    dist_sq = np.sum(P * P, axis=-1)
     R_sq = R * R
-    if dist_sq > R_sq:
-        w = rel_v - rel_p / tau
-        w_len_sq = float(w @ w)
-        dot1 = float(w @ rel_p)
-        if dot1 < 0.0 and dot1 * dot1 > R_sq * w_len_sq:
-            w_len = np.sqrt(w_len_sq)
-            unit_w = w / w_len
-            direction = np.array([unit_w[1], -unit_w[0]])
-            u = (R / tau - w_len) * unit_w
-        else:
-            leg = np.sqrt(dist_sq - R_sq)
-            if _Det(rel_p, w) > 0.0:
-                direction = (
-                    np.array(
-                        [rel_p[0] * leg - rel_p[1] * R, rel_p[0] * R + rel_p[1] * leg]
-                    )
-                    / dist_sq
-                )
-            else:
-                direction = (
-                    -np.array(
-                        [rel_p[0] * leg + rel_p[1] * R, -rel_p[0] * R + rel_p[1] * leg]
-                    )
-                    / dist_sq
-                )
-            u = float(rel_v @ direction) * direction - rel_v
-    else:
-        w = rel_v - rel_p / dt
-        w_len = np.linalg.norm(w)
-        unit_w = w / w_len
-        direction = np.array([unit_w[1], -unit_w[0]])
-        u = (R / dt - w_len) * unit_w
-    return velocity + share * u, direction
+    colliding = dist_sq <= R_sq
+
+    # No collision: w relative to the cutoff-circle centre.
+    w = V - P / tau
+    w_len_sq = np.sum(w * w, axis=-1)
+    dot1 = np.sum(w * P, axis=-1)
+    cutoff = (dot1 < 0.0) & (dot1 * dot1 > R_sq * w_len_sq)
+    w_len = np.sqrt(np.maximum(w_len_sq, _EPS))
+    unit_w = w / w_len[..., None]
+    dir_cut = np.stack([unit_w[..., 1], -unit_w[..., 0]], axis=-1)
+    u_cut = (R / tau - w_len)[..., None] * unit_w
+    leg = np.sqrt(np.maximum(dist_sq - R_sq, 0.0))
+    safe_dist_sq = np.maximum(dist_sq, _EPS)
+    left = _DetVec(P, w) > 0.0
+    dir_left = (
+        np.stack(
+            [P[..., 0] * leg - P[..., 1] * R, P[..., 0] * R + P[..., 1] * leg], axis=-1
+        )
+        / safe_dist_sq[..., None]
+    )
+    dir_right = (
+        -np.stack(
+            [P[..., 0] * leg + P[..., 1] * R, -P[..., 0] * R + P[..., 1] * leg], axis=-1
+        )
+        / safe_dist_sq[..., None]
+    )
+    dir_leg = np.where(left[..., None], dir_left, dir_right)
+    dot2 = np.sum(V * dir_leg, axis=-1)
+    u_leg = dot2[..., None] * dir_leg - V
+
+    # Collision: cutoff circle of the time step.
+    w_c = V - P / time_step
+    w_c_len = np.sqrt(np.maximum(np.sum(w_c * w_c, axis=-1), _EPS))
+    unit_c = w_c / w_c_len[..., None]
+    dir_col = np.stack([unit_c[..., 1], -unit_c[..., 0]], axis=-1)
+    u_col = (R / time_step - w_c_len)[..., None] * unit_c
+
+    direction = np.where(cutoff[..., None], dir_cut, dir_leg)
+    u = np.where(cutoff[..., None], u_cut, u_leg)
+    direction = np.where(colliding[..., None], dir_col, direction)
+    u = np.where(colliding[..., None], u_col, u)
+    return u, direction
 
 
 def orca_half_planes(
@@ -347,22 +374,16 @@ def orca_half_planes(
     )
     num_obstacle_lines = len(lines)
     dist_sq = np.sum((other_positions - position) ** 2, axis=1)
-    for i in np.argsort(dist_sq, kind="stable"):
-        if dist_sq[i] >= neighbor_dist**2:
-            continue
-        lines.append(
-            _AgentLine(
-                position,
-                velocity,
-                radius,
-                other_positions[i],
-                other_velocities[i],
-                other_radii[i],
-                tau,
-                time_step,
-                shares[i],
-            )
-        )
+    order = np.argsort(dist_sq, kind="stable")
+    order = order[dist_sq[order] < neighbor_dist**2]
+    u, dirs = orca_agent_lines(
+        other_positions[order] - position,
+        velocity - other_velocities[order],
+        radius + other_radii[order],
+        tau=tau,
+        time_step=time_step,
+    )
+    lines += list(zip(velocity + shares[order, None] * u, dirs, strict=True))
     points = np.array([p for p, _ in lines]).reshape(-1, 2)
     directions = np.array([d for _, d in lines]).reshape(-1, 2)
     return points, directions, num_obstacle_lines

@@ -28,83 +28,17 @@ the README).
 
 The half-planes depend on the predicted states, so the robot's plan moves
 the predicted humans: that is the interaction. Their Jacobians w.r.t. the
-states are taken by central differences of the vectorized ORCA geometry
-below (the geometry is piecewise smooth).
+states are taken by central differences of the vectorized ORCA agent lines
+of humans/orca.py, the same geometry the reference uses (piecewise smooth).
 """
 
 import numpy as np
 
 from sm2ith_drake.control.program import ConstraintGroup, _BlockPattern
+from sm2ith_drake.humans.orca import orca_agent_lines
 from sm2ith_drake.humans.predictors import Predictor
 
 _EPS = 1e-9
-
-
-def _Det(a, b):
-    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
-
-
-def orca_agent_lines(rel_position, rel_velocity, combined_radius, *, tau, time_step):
-    """ORCA's u and line direction for many agent pairs at once (RVO2's
-    Agent::computeNewVelocity, agent part), vectorized.
-
-    Args:
-        rel_position: (..., 2) other agent's position minus this agent's.
-        rel_velocity: (..., 2) this agent's velocity minus the other's.
-        combined_radius: (...,) sum of the radii.
-
-    Returns:
-        u (..., 2), the smallest change of relative velocity to leave the
-        velocity obstacle, and direction (..., 2) of the ORCA line. The line
-        passes through v + share·u; allowed velocities lie to its left.
-    """
-    P = np.asarray(rel_position, dtype=float)
-    V = np.asarray(rel_velocity, dtype=float)
-    R = np.broadcast_to(np.asarray(combined_radius, dtype=float), P.shape[:-1])
-    dist_sq = np.sum(P * P, axis=-1)
-    R_sq = R * R
-    colliding = dist_sq <= R_sq
-
-    # No collision: w relative to the cutoff-circle centre.
-    w = V - P / tau
-    w_len_sq = np.sum(w * w, axis=-1)
-    dot1 = np.sum(w * P, axis=-1)
-    cutoff = (dot1 < 0.0) & (dot1 * dot1 > R_sq * w_len_sq)
-    w_len = np.sqrt(np.maximum(w_len_sq, _EPS))
-    unit_w = w / w_len[..., None]
-    dir_cut = np.stack([unit_w[..., 1], -unit_w[..., 0]], axis=-1)
-    u_cut = (R / tau - w_len)[..., None] * unit_w
-    leg = np.sqrt(np.maximum(dist_sq - R_sq, 0.0))
-    safe_dist_sq = np.maximum(dist_sq, _EPS)
-    left = _Det(P, w) > 0.0
-    dir_left = (
-        np.stack(
-            [P[..., 0] * leg - P[..., 1] * R, P[..., 0] * R + P[..., 1] * leg], axis=-1
-        )
-        / safe_dist_sq[..., None]
-    )
-    dir_right = (
-        -np.stack(
-            [P[..., 0] * leg + P[..., 1] * R, -P[..., 0] * R + P[..., 1] * leg], axis=-1
-        )
-        / safe_dist_sq[..., None]
-    )
-    dir_leg = np.where(left[..., None], dir_left, dir_right)
-    dot2 = np.sum(V * dir_leg, axis=-1)
-    u_leg = dot2[..., None] * dir_leg - V
-
-    # Collision: cutoff circle of the time step.
-    w_c = V - P / time_step
-    w_c_len = np.sqrt(np.maximum(np.sum(w_c * w_c, axis=-1), _EPS))
-    unit_c = w_c / w_c_len[..., None]
-    dir_col = np.stack([unit_c[..., 1], -unit_c[..., 0]], axis=-1)
-    u_col = (R / time_step - w_c_len)[..., None] * unit_c
-
-    direction = np.where(cutoff[..., None], dir_cut, dir_leg)
-    u = np.where(cutoff[..., None], u_cut, u_leg)
-    direction = np.where(colliding[..., None], dir_col, direction)
-    u = np.where(colliding[..., None], u_col, u)
-    return u, direction
 
 
 def orca_agent_half_planes(
@@ -167,16 +101,28 @@ class OrcaKkt(Predictor):
 
     name = "orca_kkt"
 
-    def __init__(self, config, *, horizon, time_step, robot, obstacles=()):
+    def __init__(
+        self, config, *, horizon, time_step, robot, obstacles=(), human_radius=0.3
+    ):
         super().__init__(config, horizon=horizon, time_step=time_step)
         self.robot = robot
         self.segments = np.asarray(obstacles, dtype=float).reshape(-1, 2, 2)
-        self.human_radius = 0.3
+        # The radius the people are modelled with (SafetyConfig.human_radius).
+        self.human_radius = float(human_radius)
         self.robot_radius = robot.model.base_radius
         H = self.H
         self.A = H  # agent lines per human: H − 1 humans + the robot
         self.S = len(self.segments)
         self.v_pref = np.zeros((H, 2))
+        # Fixed per agent line (human j's lines: humans i ≠ j, then the robot):
+        # the other humans' indices, the combined radii and the shares.
+        self._others = np.array(
+            [[i for i in range(H) if i != j] for j in range(H)], dtype=int
+        ).reshape(H, H - 1)
+        self._radius = np.full(self.A, 2 * self.human_radius)
+        self._radius[-1] = self.human_radius + self.robot_radius
+        self._share = np.full(self.A, 0.5)
+        self._share[-1] = config.robot_share
 
     # -------------------------------------------------------------- variables
 
@@ -225,10 +171,7 @@ class OrcaKkt(Predictor):
         """Agent lines (n (K, H, A, 2), ρ (K, H, A)) and static lines
         (n (K, H, S, 2), ρ (K, H, S)) for states of shape (K, H, 2)."""
         K, H = positions.shape[0], self.H
-        # Other agents of human j: humans i ≠ j, then the robot (last).
-        others = np.array(
-            [[i for i in range(H) if i != j] for j in range(H)], dtype=int
-        ).reshape(H, H - 1)
+        others = self._others
         op = np.concatenate(
             [
                 positions[:, others],
@@ -243,10 +186,7 @@ class OrcaKkt(Predictor):
             ],
             axis=2,
         )
-        radius = np.full(self.A, 2 * self.human_radius)
-        radius[-1] = self.human_radius + self.robot_radius
-        share = np.full(self.A, 0.5)
-        share[-1] = self.config.robot_share
+        radius, share = self._radius, self._share
         n, rho = orca_agent_half_planes(
             positions[:, :, None],
             velocities[:, :, None],

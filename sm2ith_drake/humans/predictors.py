@@ -127,7 +127,15 @@ class Cvmm(Predictor):
         return self.p0[None] + k * self.v0[None]
 
 
-def MakePredictor(config, *, horizon: int, time_step: float, robot=None, obstacles=()):
+def MakePredictor(
+    config,
+    *,
+    horizon: int,
+    time_step: float,
+    robot=None,
+    obstacles=(),
+    human_radius: float = 0.3,
+):
     """The predictor named by ``config.predictor``."""
     if config.predictor == "react":
         return React(config, horizon=horizon, time_step=time_step)
@@ -142,5 +150,6 @@ def MakePredictor(config, *, horizon: int, time_step: float, robot=None, obstacl
             time_step=time_step,
             robot=robot,
             obstacles=obstacles,
+            human_radius=human_radius,
         )
     raise ValueError(f"unknown predictor '{config.predictor}'")
