@@ -74,67 +74,37 @@ def MakeSimulation(
             robot, initial_q=q0, initial_nu=nu0, time_step=scenario.robot_time_step
         ),
     )
-    planner = builder.AddNamedSystem(
-        "planner",
-        TaskPlanner(tasks, num_states=n + m, robot=robot, sequence=scenario.sequence),
-    )
     has_humans = bool(scenario.humans)
     segments = ObstacleSegments(scenario.obstacles)
-    controller = builder.AddNamedSystem(
-        "controller",
-        HierarchicalMpc(
-            robot,
-            tasks,
-            scenario.controller,
-            prediction=scenario.prediction if has_humans else None,
-            safety=scenario.safety,
-            obstacles=scenario.obstacles,
-        ),
+    stack = AddControlStack(
+        builder,
+        scenario,
+        robot,
+        tasks,
+        with_estimator=scenario.perception.estimator != "truth",
+        with_truth_log=has_humans,
     )
-    logger = builder.AddNamedSystem(
-        "logger",
-        # With humans, sample faster than the control rate so brief close
-        # approaches are not missed by the safety metrics.
-        RunLogger(
-            robot,
-            tasks,
-            period=min(period, 0.05) if has_humans else period,
-            with_humans=has_humans,
-        ),
-    )
+    planner, controller, logger = stack.planner, stack.controller, stack.logger
     crowd = None
     if has_humans:
-        crowd, estimate = _AddHumans(builder, scenario, robot, segments)
+        crowd = _AddCrowd(builder, scenario, robot, segments)
         builder.Connect(
             sim_robot.GetOutputPort("state"), crowd.GetInputPort("robot_state")
         )
-        builder.Connect(estimate, controller.GetInputPort("human_estimate"))
+        if stack.detections_input is not None:
+            sensor = _AddMocap(builder, scenario)
+            builder.Connect(
+                crowd.GetOutputPort("human_truth"), sensor.GetInputPort("human_truth")
+            )
+            builder.Connect(sensor.GetOutputPort("detections"), stack.detections_input)
+        else:
+            builder.Connect(crowd.GetOutputPort("human_truth"), stack.estimate_input)
         builder.Connect(
             crowd.GetOutputPort("human_truth"), logger.GetInputPort("human_truth")
         )
-    builder.Connect(
-        sim_robot.GetOutputPort("state"), planner.GetInputPort("robot_state")
-    )
-    builder.Connect(
-        sim_robot.GetOutputPort("state"), controller.GetInputPort("robot_state")
-    )
-    builder.Connect(
-        planner.GetOutputPort("task_references"),
-        controller.GetInputPort("task_references"),
-    )
-    builder.Connect(
-        controller.GetOutputPort("command"), sim_robot.GetInputPort("command")
-    )
-    builder.Connect(
-        sim_robot.GetOutputPort("state"), logger.GetInputPort("robot_state")
-    )
-    builder.Connect(
-        planner.GetOutputPort("task_references"), logger.GetInputPort("task_references")
-    )
-    builder.Connect(
-        controller.GetOutputPort("controller_state"),
-        logger.GetInputPort("controller_state"),
-    )
+    for port in stack.robot_state_inputs:
+        builder.Connect(sim_robot.GetOutputPort("state"), port)
+    builder.Connect(stack.command, sim_robot.GetInputPort("command"))
 
     # Geometry: a plant used only for its geometry, posed from q.
     scene_graph = builder.AddNamedSystem("scene_graph", SceneGraph())
@@ -192,11 +162,142 @@ def MakeSimulation(
     return diagram
 
 
-def _AddHumans(builder, scenario, robot, segments):
-    """CrowdSimulator → MocapSensor → HumanEstimator; returns the crowd and
-    the output port of what the controller sees."""
-    pc = scenario.perception
-    crowd = builder.AddNamedSystem(
+@dataclasses.dataclass
+class ControlStack:
+    """What AddControlStack added, and the ports the robot side must connect.
+
+    Attributes:
+        planner, controller, logger: the TaskPlanner, HierarchicalMpc and
+            RunLogger (named ``planner``, ``controller``, ``logger``).
+        estimator: the HumanEstimator (``human_estimator``) or None.
+        robot_state_inputs: every input port that takes the robot state
+            [q; ν] (planner, controller, logger).
+        detections_input: the HumanEstimator's ``detections`` input
+            (HumanDetections), or None.
+        estimate_input: the controller's ``human_estimate`` input when there
+            is no estimator in the stack (ground-truth perception), else None.
+        command: the controller's ``command`` output [u; ν_cmd].
+    """
+
+    planner: object
+    controller: object
+    logger: object
+    estimator: object
+    robot_state_inputs: list
+    detections_input: object
+    estimate_input: object
+    command: object
+
+
+def AddControlStack(
+    builder,
+    scenario: Scenario,
+    robot,
+    tasks,
+    *,
+    with_estimator: bool = True,
+    with_truth_log: bool = False,
+    with_people: bool | None = None,
+) -> ControlStack:
+    """Adds the controller side of SM²ITH to ``builder``: the TaskPlanner,
+    the HierarchicalMpc, the RunLogger and (with people) the HumanEstimator,
+    wired to each other.
+
+    The simulation (MakeSimulation) and the hardware interface
+    (MakeHardwareInterface) both build their controller this way and connect
+    the returned ports to a simulated or a real robot, so the controller is
+    the same in both.
+
+    Args:
+        builder: the DiagramBuilder.
+        scenario: the configuration (controller, prediction, safety, ...).
+        robot: the MobileManipulator.
+        tasks: the Task objects.
+        with_estimator: with people, add a HumanEstimator fed by detections
+            (otherwise the controller's ``human_estimate`` input is exposed).
+        with_truth_log: give the logger a ``human_truth`` input (simulation).
+        with_people: add the human prediction and estimator; defaults to
+            whether the scenario lists people (on hardware, people come from
+            motion capture whatever the scenario lists).
+    """
+    n, m = robot.num_positions, robot.num_velocities
+    period = ControlPeriod(scenario.controller)
+    has_humans = bool(scenario.humans) if with_people is None else with_people
+    planner = builder.AddNamedSystem(
+        "planner",
+        TaskPlanner(tasks, num_states=n + m, robot=robot, sequence=scenario.sequence),
+    )
+    controller = builder.AddNamedSystem(
+        "controller",
+        HierarchicalMpc(
+            robot,
+            tasks,
+            scenario.controller,
+            prediction=scenario.prediction if has_humans else None,
+            safety=scenario.safety,
+            obstacles=scenario.obstacles,
+        ),
+    )
+    logger = builder.AddNamedSystem(
+        "logger",
+        # With humans, sample faster than the control rate so brief close
+        # approaches are not missed by the safety metrics.
+        RunLogger(
+            robot,
+            tasks,
+            period=min(period, 0.05) if has_humans else period,
+            with_humans=with_truth_log,
+        ),
+    )
+    builder.Connect(
+        planner.GetOutputPort("task_references"),
+        controller.GetInputPort("task_references"),
+    )
+    builder.Connect(
+        planner.GetOutputPort("task_references"), logger.GetInputPort("task_references")
+    )
+    builder.Connect(
+        controller.GetOutputPort("controller_state"),
+        logger.GetInputPort("controller_state"),
+    )
+    estimator = detections = estimate = None
+    if has_humans:
+        if with_estimator:
+            pc = scenario.perception
+            estimator = builder.AddNamedSystem(
+                "human_estimator",
+                HumanEstimator(
+                    period=pc.period,
+                    measurement_noise=pc.noise,
+                    acceleration_noise=pc.acceleration_noise,
+                    track_timeout=pc.track_timeout,
+                ),
+            )
+            builder.Connect(
+                estimator.GetOutputPort("human_estimate"),
+                controller.GetInputPort("human_estimate"),
+            )
+            detections = estimator.GetInputPort("detections")
+        else:
+            estimate = controller.GetInputPort("human_estimate")
+    return ControlStack(
+        planner=planner,
+        controller=controller,
+        logger=logger,
+        estimator=estimator,
+        robot_state_inputs=[
+            planner.GetInputPort("robot_state"),
+            controller.GetInputPort("robot_state"),
+            logger.GetInputPort("robot_state"),
+        ],
+        detections_input=detections,
+        estimate_input=estimate,
+        command=controller.GetOutputPort("command"),
+    )
+
+
+def _AddCrowd(builder, scenario, robot, segments):
+    return builder.AddNamedSystem(
         "crowd",
         CrowdSimulator(
             robot,
@@ -207,9 +308,11 @@ def _AddHumans(builder, scenario, robot, segments):
             tau_obs=scenario.prediction.tau_obs,
         ),
     )
-    if pc.estimator == "truth":
-        return crowd, crowd.GetOutputPort("human_truth")
-    sensor = builder.AddNamedSystem(
+
+
+def _AddMocap(builder, scenario):
+    pc = scenario.perception
+    return builder.AddNamedSystem(
         "mocap",
         MocapSensor(
             period=pc.period,
@@ -218,22 +321,6 @@ def _AddHumans(builder, scenario, robot, segments):
             seed=scenario.random_seed,
         ),
     )
-    estimator = builder.AddNamedSystem(
-        "human_estimator",
-        HumanEstimator(
-            period=pc.period,
-            measurement_noise=pc.noise,
-            acceleration_noise=pc.acceleration_noise,
-            track_timeout=pc.track_timeout,
-        ),
-    )
-    builder.Connect(
-        crowd.GetOutputPort("human_truth"), sensor.GetInputPort("human_truth")
-    )
-    builder.Connect(
-        sensor.GetOutputPort("detections"), estimator.GetInputPort("detections")
-    )
-    return crowd, estimator.GetOutputPort("human_estimate")
 
 
 def _FrameScene(meshcat: Meshcat, q0, tasks) -> None:
