@@ -36,6 +36,10 @@ def _Run(args) -> int:
     from sm2ith_drake.experiments.metrics import FormatMetrics
 
     scenario = _Load(args.file, args.scenario, args.scenario_text)
+    if getattr(args, "seed", None) is not None:  # sm2ith replay
+        from sm2ith_drake.experiments.campaign import ApplySeed
+
+        scenario = ApplySeed(scenario, args.seed)
     if args.graphviz:
         diagram = MakeSimulation(scenario=scenario)
         _WriteGraphviz(diagram, args.graphviz)
@@ -63,6 +67,7 @@ def _Run(args) -> int:
         html_path=html,
         progress=sys.stderr.isatty(),
         realtime_rate=rate,
+        stop_when_done=getattr(args, "stop_when_done", False),
     )
     print(
         f"scenario {args.scenario} ({scenario.robot.model}, "
@@ -279,6 +284,10 @@ def MakeParser() -> argparse.ArgumentParser:
     )
     bench.add_argument("--json", default=None, help="write the figures as JSON")
     bench.set_defaults(func=_Bench)
+
+    from sm2ith_drake.experiments.cli import AddExperimentCommands
+
+    AddExperimentCommands(sub)
     return parser
 
 

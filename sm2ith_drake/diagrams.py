@@ -14,8 +14,12 @@ from pydrake.geometry import (
     Role,
     SceneGraph,
 )
-from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
-from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.analysis import (
+    ApplySimulatorConfig,
+    Simulator,
+    SimulatorStatus,
+)
+from pydrake.systems.framework import DiagramBuilder, EventStatus
 from pydrake.systems.primitives import MatrixGain
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 
@@ -32,9 +36,12 @@ from sm2ith_drake.systems.visualization import HumanVisualizer, PlanVisualizer
 
 
 def MakeRobot(scenario: Scenario) -> MobileManipulator:
-    return MobileManipulator(
+    """The scenario's MobileManipulator, with its joint-limit overrides."""
+    robot = MobileManipulator(
         scenario.robot.model, urdf_path=scenario.robot.urdf_path or None
     )
+    robot.NarrowJointLimits(scenario.robot.joint_limits)
+    return robot
 
 
 def MakeSimulation(
@@ -361,12 +368,16 @@ def RunSimulation(
     tasks=None,
     progress: bool = False,
     realtime_rate: float | None = None,
+    stop_when_done: bool = False,
 ) -> RunResult:
     """Builds and simulates ``scenario``; returns the log and its metrics.
 
     If ``html_path`` is given (and ``meshcat``), the run is recorded and saved
     as a self-contained HTML replay. ``realtime_rate`` overrides the
     scenario's simulator_config (1.0: real time; 0: as fast as possible).
+    With ``stop_when_done`` a run with a task sequence ends as soon as its
+    last phase is completed (the campaigns' navigation time); otherwise it
+    runs for the scenario's duration.
     """
     from sm2ith_drake.experiments.metrics import SummarizeRun
 
@@ -380,11 +391,22 @@ def RunSimulation(
     if meshcat is not None and html_path:
         meshcat.StartRecording(set_visualizations_while_recording=True)
     end = scenario.simulation_duration if duration is None else duration
+    if stop_when_done and scenario.sequence:
+        planner = diagram.GetSubsystemByName("planner")
+        num_phases = len(scenario.sequence)
+
+        def monitor(root_context):
+            seq = planner.GetSequenceState(planner.GetMyContextFromRoot(root_context))
+            if len(seq.completed_at) >= num_phases:
+                return EventStatus.ReachedTermination(planner, "sequence completed")
+            return EventStatus.Succeeded()
+
+        simulator.set_monitor(monitor)
     simulator.Initialize()
     if progress:
         steps = max(1, int(np.ceil(end)))
         for i in range(1, steps + 1):
-            simulator.AdvanceTo(min(end, end * i / steps))
+            status = simulator.AdvanceTo(min(end, end * i / steps))
             print(
                 f"\r  simulated {simulator.get_context().get_time():6.1f} / "
                 f"{end:.1f} s",
@@ -392,6 +414,11 @@ def RunSimulation(
                 file=sys.stderr,
                 flush=True,
             )
+            if (
+                status.reason()
+                == SimulatorStatus.ReturnReason.kReachedTerminationCondition
+            ):
+                break
         print(file=sys.stderr)
     else:
         simulator.AdvanceTo(end)

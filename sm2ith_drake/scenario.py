@@ -37,6 +37,10 @@ class RobotConfig:
     initial_q: list[float] = field(default_factory=list)
     # Initial pseudo-velocities ν (empty: zero).
     initial_nu: list[float] = field(default_factory=list)
+    # Narrower position limits [lower, upper] for arm joints, by joint name
+    # (e.g. a wrist held near straight while it carries a banner). Must lie
+    # within the URDF's limits.
+    joint_limits: dict[str, list[float]] = field(default_factory=dict)
 
 
 @dataclass
@@ -291,12 +295,13 @@ def LoadScenario(
         scenario = yaml_load_typed(
             schema=Scenario, filename=str(path), child_name=scenario_name
         )
-        scenario = yaml_load_typed(
-            schema=Scenario,
-            data=scenario_text,
-            defaults=scenario,
-            retain_map_defaults=True,
-        )
+        if scenario_text.strip():
+            scenario = yaml_load_typed(
+                schema=Scenario,
+                data=scenario_text,
+                defaults=scenario,
+                retain_map_defaults=True,
+            )
     except (RuntimeError, ValueError, TypeError, yaml.YAMLError) as e:
         raise ScenarioError(f"{path}:{scenario_name}: {_OneLine(e)}") from e
     ValidateScenario(scenario)

@@ -107,3 +107,138 @@ def FormatMetrics(metrics: dict) -> str:
         text = f"{value:.4g}" if isinstance(value, float) else str(value)
         lines.append(f"  {key:<{width}}  {text}")
     return "\n".join(lines)
+
+
+def PolylineDistances(points, polyline) -> np.ndarray:
+    """Distance from each 2D point (T, 2) to the polyline (K, 2) (a single
+    vertex counts as a point)."""
+    from sm2ith_drake.control.cbf import point_segment_distance_2d
+
+    P = np.asarray(points, dtype=float).reshape(-1, 2)
+    L = np.asarray(polyline, dtype=float).reshape(-1, 2)
+    if len(L) == 0:
+        raise ValueError("the reference path is empty")
+    if len(L) == 1:
+        L = np.vstack([L, L])
+    d, _, _ = point_segment_distance_2d(L[None, :-1], L[None, 1:], P[:, None, :])
+    return d.min(axis=1)
+
+
+def PathDeviation(base_xy, reference_xy) -> float:
+    """Average distance of the base from the optimal path (Section V): the
+    mean over the samples of the distance from the base position to the
+    reference path (the path the same controller takes with no humans)."""
+    return float(PolylineDistances(base_xy, reference_xy).mean())
+
+
+def Retreat(goal_distances, phases=None) -> float:
+    """The largest distance the base gave back on its way to a goal: the
+    maximum over t of d(t) − min_{s ≤ t} d(s), where d is the distance to the
+    goal; the running minimum restarts when the phase (the goal) changes."""
+    d = np.asarray(goal_distances, dtype=float)
+    if d.size == 0:
+        return float("nan")
+    phases = np.zeros(d.size, dtype=int) if phases is None else np.asarray(phases)
+    worst, best = 0.0, np.inf
+    for i in range(d.size):
+        if i and phases[i] != phases[i - 1]:
+            best = np.inf
+        best = min(best, d[i])
+        worst = max(worst, d[i] - best)
+    return float(worst)
+
+
+# The tidy columns of a campaign run, in order (see CampaignRow).
+CAMPAIGN_METRICS = [
+    "success",
+    "navigation_time",
+    "ee_error_mean",
+    "ee_error_max",
+    "base_error_mean",
+    "base_error_final",
+    "base_path_deviation",
+    "base_retreat",
+    "intimate_space_time",
+    "mean_human_distance",
+    "min_human_distance",
+    "min_human_gap",
+    "collision",
+    "collision_samples",
+    "step_time_median_ms",
+    "step_time_p95_ms",
+    "step_time_max_ms",
+    "control_steps",
+    "solver_failures",
+    "fallbacks",
+    "braking_fallbacks",
+    "prediction_consistency",
+    "simulated_time",
+]
+
+
+def CampaignRow(log, robot, scenario, metrics: dict, reference_xy=None) -> dict:
+    """The Section V metrics of one run, under the names CAMPAIGN_METRICS.
+
+    Args:
+        log: the RunLog.
+        robot: the MobileManipulator.
+        scenario: the Scenario that ran.
+        metrics: SummarizeRun's output for the run (plus phases_completed /
+            sequence_time with a task sequence).
+        reference_xy: the optimal base path (T, 2), or None.
+
+    The EE error is that of the highest-priority EE task (ee_position or
+    ee_position_in_base), the base error that of the first base_position or
+    base_pose task. Navigation time is the completion time of the task
+    sequence (NaN when it did not complete: a timeout). Distances to people
+    are from a human's centre to the nearest robot body (base or any arm
+    link); the gap subtracts the person's radius.
+    """
+    nan = float("nan")
+    row = dict.fromkeys(CAMPAIGN_METRICS, nan)
+    kinds = {t.name or t.kind: t.kind for t in scenario.tasks}
+    ee = next((n for n, k in kinds.items() if k.startswith("ee_position")), None)
+    base = next((n for n, k in kinds.items() if k.startswith("base_")), None)
+    times = np.asarray(log.times, dtype=float)
+    phases = np.asarray(log.phases) if log.phases else None
+    if ee is not None and log.task_errors.get(ee):
+        e = np.linalg.norm(np.asarray(log.task_errors[ee])[:, :3], axis=1)
+        row["ee_error_mean"], row["ee_error_max"] = float(e.mean()), float(e.max())
+    if base is not None and log.task_errors.get(base):
+        e = np.linalg.norm(np.asarray(log.task_errors[base])[:, :2], axis=1)
+        row["base_error_mean"] = float(e.mean())
+        row["base_error_final"] = float(e[-1])
+        row["base_retreat"] = Retreat(e, phases)
+    states = np.asarray(log.states)
+    if reference_xy is not None and len(states):
+        row["base_path_deviation"] = PathDeviation(states[:, :2], reference_xy)
+    if scenario.sequence:
+        done = metrics.get("phases_completed", 0) == len(scenario.sequence)
+        row["success"] = bool(done)
+        row["navigation_time"] = float(metrics["sequence_time"]) if done else nan
+    else:
+        row["success"] = True
+        row["navigation_time"] = float(times[-1]) if times.size else nan
+    if log.human_positions:
+        dist = HumanDistances(robot, log.states, log.human_positions)
+        row["min_human_distance"] = float(dist.min())
+    for key in (
+        "intimate_space_time",
+        "mean_human_distance",
+        "min_human_gap",
+        "collision_samples",
+        "step_time_median_ms",
+        "step_time_p95_ms",
+        "step_time_max_ms",
+        "control_steps",
+        "solver_failures",
+        "fallbacks",
+        "braking_fallbacks",
+        "prediction_consistency",
+    ):
+        if key in metrics:
+            row[key] = metrics[key]
+    if "collision_samples" in metrics:
+        row["collision"] = bool(metrics["collision_samples"] > 0)
+    row["simulated_time"] = float(times[-1]) if times.size else 0.0
+    return row

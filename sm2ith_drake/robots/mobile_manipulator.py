@@ -266,6 +266,7 @@ class MobileManipulator:
             raise ValueError(
                 f"a {model.base_kind} base needs {nb} velocity and acceleration limits"
             )
+        self.arm_joint_names = list(model.arm_joints)
         inf3 = np.full(3, np.inf)
         self.q_lower = np.concatenate([-inf3, lower])
         self.q_upper = np.concatenate([inf3, upper])
@@ -273,6 +274,34 @@ class MobileManipulator:
         self.nu_lower = -self.nu_upper
         self.nudot_upper = np.concatenate([ba, a_max])
         self.nudot_lower = -self.nudot_upper
+
+    def NarrowJointLimits(self, limits: dict) -> None:
+        """Narrows arm joint position limits: ``limits`` maps a joint name to
+        [lower, upper], which must lie within the URDF's limits.
+
+        Raises:
+            ValueError: an unknown joint, a malformed pair, or a range outside
+                the URDF's.
+        """
+        for name, pair in limits.items():
+            if name not in self.arm_joint_names:
+                raise ValueError(
+                    f"robot.joint_limits: unknown joint '{name}'; arm joints: "
+                    + ", ".join(self.arm_joint_names)
+                )
+            pair = np.asarray(pair, dtype=float)
+            i = 3 + self.arm_joint_names.index(name)
+            lo, hi = self.q_lower[i], self.q_upper[i]
+            if (
+                pair.shape != (2,)
+                or not np.all(np.isfinite(pair))
+                or not (lo <= pair[0] < pair[1] <= hi)
+            ):
+                raise ValueError(
+                    f"robot.joint_limits.{name} must be [lower, upper] with "
+                    f"{lo:g} ≤ lower < upper ≤ {hi:g}, got {pair.tolist()}"
+                )
+            self.q_lower[i], self.q_upper[i] = pair
 
     def _ReadCapsules(self):
         plant = self.plant

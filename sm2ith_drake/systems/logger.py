@@ -21,6 +21,8 @@ class RunLog:
     p_WE: list = field(default_factory=list)
     # Task errors at the actual state, by task name.
     task_errors: dict = field(default_factory=dict)
+    # The task sequence's phase index at each sample (0 without a sequence).
+    phases: list = field(default_factory=list)
     records: list = field(default_factory=list)  # StepRecord per control step
     # Per control step, the per-stage errors of the solved plan (by stage
     # index then task name), to check the lexicographic invariant.
@@ -81,6 +83,7 @@ class RunLogger(LeafSystem):
         log.times.append(context.get_time())
         log.states.append(x)
         log.p_WE.append(np.asarray(kin.p_WE)[0])
+        log.phases.append(refs.phase_index)
         for task in self._tasks:
             target = np.asarray(refs.targets.get(task.name, task.target))
             if target.ndim == 2:
