@@ -16,19 +16,25 @@ import numpy as np
 EXIT_USAGE = 2
 
 
-class UserError(Exception):
-    """An error in the user's input: printed as one line, exit code 2."""
+# Defined in its own module so that `python -m sm2ith_drake.cli` and the
+# subcommand modules raise and catch the same class.
+from sm2ith_drake.errors import UserError  # noqa: E402
 
 
 def _Load(filename: str, name: str, text: str):
+    from sm2ith_drake.diagrams import MakeRobot
     from sm2ith_drake.scenario import LoadScenario, ScenarioError
 
     try:
-        return LoadScenario(filename=filename, scenario_name=name, scenario_text=text)
+        scenario = LoadScenario(
+            filename=filename, scenario_name=name, scenario_text=text
+        )
+        MakeRobot(scenario)  # the robot's own checks (URDF, joint limits)
     except FileNotFoundError as e:
         raise UserError(str(e)) from e
-    except ScenarioError as e:
+    except (ScenarioError, ValueError) as e:
         raise UserError(str(e)) from e
+    return scenario
 
 
 def _Run(args) -> int:

@@ -6,7 +6,7 @@ from pathlib import Path
 
 
 def _UserError(message):
-    from sm2ith_drake.cli import UserError
+    from sm2ith_drake.errors import UserError
 
     return UserError(message)
 
