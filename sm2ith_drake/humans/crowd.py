@@ -3,8 +3,9 @@
 The crowd moves with time step Δt_c. Each human has a behaviour:
 
 - ``orca``: the velocity RVO2's ORCA would choose (van den Berg et al. 2011)
-  toward its current waypoint, with the other humans and the robot base as
-  agents and the static obstacles as lines;
+  toward its current waypoint, with the other humans and the robot (its base
+  and its body nearest to the person, e.g. an outstretched arm) as agents and
+  the static obstacles as lines;
 - ``social_force``: Helbing's social force model, so a predictor is not only
   scored against its own model;
 - ``scripted``: walks its waypoints at its speed, ignoring everyone;
@@ -62,21 +63,29 @@ def PreferredVelocities(humans, state: CrowdState, time: float):
     return v_pref, goals
 
 
+def _NearestBody(position, robot_bodies):
+    """The robot capsule nearest to ``position`` on the floor: (the closest
+    point on its axis, its radius, its surface distance)."""
+    segments, radii = robot_bodies
+    a, b = segments[:, 0], segments[:, 1]
+    ab = b - a
+    s = np.clip(
+        np.sum((position - a) * ab, axis=1)
+        / np.maximum(np.sum(ab * ab, axis=1), 1e-12),
+        0.0,
+        1.0,
+    )
+    closest = a + s[:, None] * ab
+    d = np.linalg.norm(closest - position, axis=1) - radii
+    i = int(np.argmin(d))
+    return closest[i], float(radii[i]), float(d[i])
+
+
 def _Gap(position, radius, robot_position, robot_radius, robot_bodies):
     """Clearance between a person and the nearest robot body (m)."""
     gap = np.linalg.norm(robot_position - position) - robot_radius - radius
     if robot_bodies is not None:
-        segments, radii = robot_bodies
-        a, b = segments[:, 0], segments[:, 1]
-        ab = b - a
-        s = np.clip(
-            np.sum((position - a) * ab, axis=1)
-            / np.maximum(np.sum(ab * ab, axis=1), 1e-12),
-            0.0,
-            1.0,
-        )
-        d = np.linalg.norm(a + s[:, None] * ab - position, axis=1) - radii - radius
-        gap = min(gap, float(d.min()))
+        gap = min(gap, _NearestBody(position, robot_bodies)[2] - radius)
     return gap
 
 
@@ -122,13 +131,22 @@ def StepCrowd(
             from sm2ith_drake.humans.orca import orca_velocity
 
             others = [i for i in range(H) if i != j]
+            # The robot as people see it: its base and, as a second agent,
+            # the nearest of its bodies (an arm sticking out is avoided too),
+            # moving with the base.
+            robot_p, robot_r = [robot_position], [robot_radius]
+            if robot_bodies is not None:
+                point, r, _ = _NearestBody(p[j], robot_bodies)
+                if np.linalg.norm(point - robot_position) > 1e-6:
+                    robot_p.append(point)
+                    robot_r.append(r)
             new_v[j] = orca_velocity(
                 p[j],
                 v[j],
                 h.radius,
-                np.vstack([p[others], robot_position[None]]),
-                np.vstack([v[others], robot_velocity[None]]),
-                np.concatenate([radii[others], [robot_radius]]),
+                np.vstack([p[others], *robot_p]),
+                np.vstack([v[others], *([robot_velocity] * len(robot_p))]),
+                np.concatenate([radii[others], robot_r]),
                 preferred_velocity=v_pref[j],
                 max_speed=max(h.speed, 1e-3),
                 tau=tau,
