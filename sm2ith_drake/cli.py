@@ -294,6 +294,10 @@ def MakeParser() -> argparse.ArgumentParser:
     from sm2ith_drake.experiments.cli import AddExperimentCommands
 
     AddExperimentCommands(sub)
+
+    from sm2ith_drake.lcm.cli import AddHardwareCommands
+
+    AddHardwareCommands(sub)
     return parser
 
 
