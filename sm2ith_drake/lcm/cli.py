@@ -39,11 +39,40 @@ def _SplitScenarioRef(ref: str, option: str) -> tuple[str, str]:
     return path, name
 
 
+_LCM_PROVIDERS = ("udpm", "mpudpm", "memq", "file", "tcpq")
+
+
+def CheckLcmUrl(url: str) -> None:
+    """Raises UserError for a URL that LCM cannot open (DrakeLcm only prints
+    an error and then silently drops every message). Opens nothing."""
+    import ipaddress
+    from urllib.parse import urlsplit
+
+    if not url:
+        return  # LCM's default ($LCM_DEFAULT_URL or its udpm default)
+    scheme = url.split("://", 1)[0] if "://" in url else ""
+    if scheme not in _LCM_PROVIDERS:
+        raise _UserError(
+            f"LCM URL '{url}': the provider must be one of "
+            + ", ".join(f"{p}://" for p in _LCM_PROVIDERS)
+        )
+    if scheme in ("udpm", "mpudpm"):
+        try:
+            parts = urlsplit(url)
+            address = ipaddress.ip_address(parts.hostname or "")
+            parts.port  # noqa: B018 (raises for a malformed port)
+        except ValueError as e:
+            raise _UserError(f"LCM URL '{url}': {e}") from e
+        if not address.is_multicast:
+            raise _UserError(f"LCM URL '{url}': {address} is not a multicast address")
+
+
 def _MakeLcm(params, url: str | None):
     from pydrake.lcm import DrakeLcm
 
     if url is not None:
         params.lcm_url = url
+    CheckLcmUrl(params.lcm_url)
     try:
         return DrakeLcm(params)
     except RuntimeError as e:
@@ -91,13 +120,15 @@ def _Hardware(args) -> int:
     t, c = summary["timing"], summary["controller"]
     print(
         f"ended by {summary['ended_by']} after {summary['time']:.1f} s; "
-        f"{t['commands']} commands {t['modes']}, final stop sent"
+        f"{t['commands']} commands {t['modes']}; final command: "
+        f"{summary['final_command']['mode']}"
     )
     print(
-        f"period jitter p95 {_Ms(t['jitter_ms'], 'p95')}; latency (state read → "
-        f"command sent) median {_Ms(t['latency_ms'])} vs solve median "
-        f"{_Ms(c['solve_ms'])} (step {_Ms(c['step_ms'])}); state age at the "
-        f"step {_Ms(t['state_age_ms'])}; robot stamp → command "
+        f"control-period jitter p95 {_Ms(t['control_jitter_ms'], 'p95')} "
+        f"(publication {_Ms(t['publish_jitter_ms'], 'p95')}); latency "
+        f"(state read → command sent) median {_Ms(t['latency_ms'])} vs solve "
+        f"median {_Ms(c['solve_ms'])} (whole control step {_Ms(c['step_ms'])}); "
+        f"state age at the step {_Ms(t['state_age_ms'])}; robot stamp → command "
         f"{_Ms(t['end_to_end_ms'])}"
     )
     hw = summary["hardware"]

@@ -1009,11 +1009,23 @@ class CommandTiming:
 
     Fed every ``lcmt_sm2ith_robot_command`` seen on the command channel (by
     whichever process listens: the controller itself or the driver), it
-    measures the control period (jitter: |Δutime − period|), the latency
-    from the control step reading the state to the command's publication
-    (utime − control_utime), the state's age at that read (control_utime −
-    state_receive_utime) and end to end from the robot's state stamp to the
-    command (utime − state_utime, across processes on one clock).
+    measures, in milliseconds:
+
+    - ``control_jitter_ms``: |Δ − period| between successive control steps
+      (when each step read its state, ``control_utime``): the control
+      period's jitter;
+    - ``publish_jitter_ms``: the same between successive publications
+      (``utime``), which also varies with the solve time;
+    - ``latency_ms``: from the control step reading the state to the
+      command's publication (utime − control_utime), the state-to-command
+      latency of the controller;
+    - ``state_age_ms``: how old the state was when the step read it
+      (control_utime − state_receive_utime);
+    - ``end_to_end_ms``: from the robot's state stamp to the command
+      (utime − state_utime: across processes, on one host's clock).
+
+    At most ``max_samples`` commands are kept for the figures (all are
+    counted by mode).
     """
 
     def __init__(self, period: float, max_samples: int = 100_000):
@@ -1024,24 +1036,29 @@ class CommandTiming:
         self.sequence = 0  # of the last RawLcmMessage seen
         self.last = None
         self.utimes: list[int] = []
+        self.control_utimes: list[int] = []
         self.latency: list[float] = []
         self.state_age: list[float] = []
         self.end_to_end: list[float] = []
 
     def Add(self, msg) -> None:
         self.modes[MODE_NAMES.get(msg.mode, "stop")] += 1
+        self.last = msg
         if len(self.utimes) >= self.max_samples:
             return
         self.utimes.append(msg.utime)
-        if msg.control_utime > 0:
-            self.latency.append((msg.utime - msg.control_utime) * 1e-6)
+        if msg.control_utime <= 0 or (
+            self.control_utimes and msg.control_utime <= self.control_utimes[-1]
+        ):
+            return  # not a new control step (e.g. the final stop at exit)
+        self.control_utimes.append(msg.control_utime)
+        self.latency.append((msg.utime - msg.control_utime) * 1e-6)
         if msg.mode != MODE_STOP and msg.state_utime > 0:
             self.end_to_end.append((msg.utime - msg.state_utime) * 1e-6)
             if msg.state_receive_utime > 0:
                 self.state_age.append(
                     (msg.control_utime - msg.state_receive_utime) * 1e-6
                 )
-        self.last = msg
 
     def AddBytes(self, data: bytes) -> None:
         """Decodes and adds (garbage is only counted)."""
@@ -1051,7 +1068,7 @@ class CommandTiming:
             self.rejected += 1
 
     def Summary(self) -> dict:
-        """Milliseconds; None where there is no sample."""
+        """The figures (ms: median, p95, max; None without samples)."""
 
         def stats(values):
             if not len(values):
@@ -1063,13 +1080,15 @@ class CommandTiming:
                 "max": float(np.max(a)),
             }
 
-        intervals = np.diff(np.asarray(self.utimes, dtype=float)) * 1e-6
+        publish = np.diff(np.asarray(self.utimes, dtype=float)) * 1e-6
+        control = np.diff(np.asarray(self.control_utimes, dtype=float)) * 1e-6
         return {
             "commands": len(self.utimes),
             "modes": dict(self.modes),
             "rejected": self.rejected,
-            "period_ms": stats(intervals),
-            "jitter_ms": stats(np.abs(intervals - self.period)),
+            "period_ms": stats(control),
+            "control_jitter_ms": stats(np.abs(control - self.period)),
+            "publish_jitter_ms": stats(np.abs(publish - self.period)),
             "latency_ms": stats(self.latency),
             "state_age_ms": stats(self.state_age),
             "end_to_end_ms": stats(self.end_to_end),
@@ -1136,8 +1155,11 @@ class StopRequest:
         return False
 
 
-def PublishStopCommand(lcm, scenario: Scenario, robot, nu, gate=None) -> None:
-    """Publishes one stop command: ν_cmd = 0, braking from ``nu``."""
+def PublishStopCommand(
+    lcm, scenario: Scenario, robot, nu, gate=None
+) -> lcmt_sm2ith_robot_command:
+    """Publishes one stop command (ν_cmd = 0, braking from ``nu``) and
+    returns it."""
     period = ControlPeriod(scenario.controller)
     gate = copy.copy(gate) if gate is not None else GateState()
     gate.mode, gate.speed_scale = MODE_STOP, 0.0
@@ -1151,6 +1173,7 @@ def PublishStopCommand(lcm, scenario: Scenario, robot, nu, gate=None) -> None:
     )
     msg = MakeCommandMessage(command, gate)
     lcm.Publish(scenario.hardware.command_channel, msg.encode())
+    return msg
 
 
 def RunHardware(
@@ -1199,27 +1222,38 @@ def RunHardware(
             return EventStatus.Succeeded()
 
         simulator.set_monitor(monitor)
-        simulator.Initialize()
-        next_report = report_period
-        while not stop.requested and root.get_time() < end:
-            simulator.AdvanceTo(min(end, root.get_time() + 0.5))
-            if log is not None and root.get_time() >= next_report:
-                next_report += report_period
-                print(_StatusLine(diagram, root, timing), file=log, flush=True)
-        reason = "signal" if stop.requested else "duration"
-        state_rx = hardware.GetSubsystemByName("robot_state.receiver")
-        x = state_rx.GetOutputPort("state").Eval(state_rx.GetMyContextFromRoot(root))
-        gate = hardware.GetSubsystemByName("command_gate")
-        PublishStopCommand(
-            lcm,
-            scenario,
-            robot,
-            np.asarray(x)[robot.num_positions :],
-            gate.GetGateState(gate.GetMyContextFromRoot(root)),
-        )
+        reason = "error"
+        try:
+            simulator.Initialize()
+            next_report = report_period
+            while not stop.requested and root.get_time() < end:
+                simulator.AdvanceTo(min(end, root.get_time() + 0.5))
+                if log is not None and root.get_time() >= next_report:
+                    next_report += report_period
+                    print(_StatusLine(diagram, root, timing), file=log, flush=True)
+            reason = "signal" if stop.requested else "duration"
+        finally:
+            # Whatever ended the run (even an exception), the robot is told
+            # to stop.
+            state_rx = hardware.GetSubsystemByName("robot_state.receiver")
+            x = state_rx.GetOutputPort("state").Eval(
+                state_rx.GetMyContextFromRoot(root)
+            )
+            gate = hardware.GetSubsystemByName("command_gate")
+            final = PublishStopCommand(
+                lcm,
+                scenario,
+                robot,
+                np.asarray(x)[robot.num_positions :],
+                gate.GetGateState(gate.GetMyContextFromRoot(root)),
+            )
     summary = _Summary(diagram, root, timing)
     summary["ended_by"] = reason
-    summary["final_stop_sent"] = True
+    summary["final_command"] = {
+        "mode": MODE_NAMES[final.mode],
+        "velocity": list(final.velocity),
+        "acceleration": list(final.acceleration),
+    }
     if log is not None:
         print(_StatusLine(diagram, root, timing), file=log, flush=True)
     return summary
@@ -1278,7 +1312,7 @@ def _StatusLine(diagram, root, timing: CommandTiming) -> str:
     parts = [
         f"t={root.get_time():.1f}s",
         f"commands {t['commands']} {t['modes']}",
-        f"jitter p95 {ms(t['jitter_ms'], 'p95')} ms",
+        f"control jitter p95 {ms(t['control_jitter_ms'], 'p95')} ms",
         f"latency {ms(t['latency_ms'])} ms (solve {ms(ctrl['solve_ms'])} ms)",
         f"gate: {hw['gate']['mode']}",
     ]
