@@ -353,8 +353,25 @@ def LoadScenario(
     return scenario
 
 
+def _ValidateJointLimits(robot: RobotConfig) -> None:
+    from sm2ith_drake.robots.models import MODELS
+
+    model = MODELS.get(robot.model)
+    for name, pair in robot.joint_limits.items():
+        if model is not None and name not in model.arm_joints:
+            raise ScenarioError(
+                f"robot.joint_limits: unknown joint '{name}'; arm joints: "
+                + ", ".join(model.arm_joints)
+            )
+        if len(pair) != 2 or not pair[0] < pair[1]:
+            raise ScenarioError(
+                f"robot.joint_limits.{name} must be [lower, upper], lower < upper"
+            )
+
+
 def ValidateScenario(scenario: Scenario) -> None:
     """Checks values that the schema cannot; raises ScenarioError."""
+    _ValidateJointLimits(scenario.robot)
     c = scenario.controller
     if c.method not in ("htmpc", "weighted_sum"):
         raise ScenarioError(f"controller.method must be htmpc|weighted_sum: {c.method}")

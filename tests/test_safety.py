@@ -105,3 +105,73 @@ def test_adversarial_human_is_not_hit():
     )
     assert m["collision_samples"] == 0
     assert np.isfinite(m["min_human_gap"])
+
+
+def _replay_controller():
+    from sm2ith_drake.control.controller import MpcController
+    from sm2ith_drake.diagrams import MakeRobot
+
+    scenario = LoadScenario(
+        filename=CROSSING, scenario_name="crossing_ridgeback_ur10_1h"
+    )
+    robot = MakeRobot(scenario)
+    controller = MpcController(
+        robot,
+        scenario.tasks,
+        scenario.controller,
+        prediction=scenario.prediction,
+        safety=scenario.safety,
+    )
+    return scenario, robot, controller
+
+
+def _Gap0(robot, q, position):
+    from sm2ith_drake.control.cbf import HumanDistances
+
+    return HumanDistances(robot, q[None], np.array([[position]]))[0, 0]
+
+
+def test_stale_plan_is_not_replayed_into_a_person():
+    from sm2ith_drake.humans.predictors import HumanEstimate
+
+    scenario, robot, controller = _replay_controller()
+    reach = scenario.safety.human_radius + scenario.safety.human_margin
+    q0 = np.array(robot.default_q, dtype=float)
+    nu0 = np.zeros(robot.num_velocities)
+    nu0[0] = 0.5  # driving forward (+x) at 0.5 m/s
+    u = np.zeros(robot.num_velocities)
+    # A person standing 5 cm outside the barrier, straight ahead of the base.
+    ahead = np.array([2.0, 0.0])
+    while _Gap0(robot, q0, ahead) - reach > 0.05:
+        ahead[0] -= 0.005
+    standing = HumanEstimate(ids=[1], positions=[ahead], velocities=[[0.0, 0.0]])
+    # 0.2 s at 0.5 m/s closes 0.1 m: h from 0.05 to −0.05 < (1 − γ)·0.05.
+    assert not controller._ReplayIsSafe(q0, nu0, u, standing)
+    leaving = HumanEstimate(ids=[1], positions=[ahead], velocities=[[0.6, 0.0]])
+    assert controller._ReplayIsSafe(q0, nu0, u, leaving)
+    far = HumanEstimate(ids=[1], positions=[[5.0, 4.0]], velocities=[[0.0, 0.0]])
+    assert controller._ReplayIsSafe(q0, nu0, u, far)
+
+    # In a control step: the solver fails after a plan was made with the
+    # person far away; now the person stands ahead, so the robot brakes.
+    state = controller.InitialState()
+    targets = {t.name: np.asarray(t.target, dtype=float) for t in controller.tasks}
+    state = controller.Step(
+        state, time_now=0.0, q0=q0, nu0=nu0, targets=targets, humans=far
+    )
+    assert state.record.mode == "solved"
+
+    def fail(**kwargs):
+        raise RuntimeError("forced failure")
+
+    controller.solver.Solve = fail
+    q1 = q0.copy()
+    nu1 = state.plan.nu[controller.shift]
+    # The plan itself would be replayed (it matches the measured state)…
+    assert controller._ReplayPlan(state, nu1) is not None
+    state = controller.Step(
+        state, time_now=0.2, q0=q1, nu0=nu1, targets=targets, humans=standing
+    )
+    # …but not into the person.
+    assert state.record.mode == "brake"
+    assert state.counters.unsafe_replays == 1

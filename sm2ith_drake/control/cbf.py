@@ -41,6 +41,21 @@ def point_segment_distance_2d(A, B, P):
     return d, s, n
 
 
+def HumanDistances(robot, states, human_positions) -> np.ndarray:
+    """(T, H) horizontal distance from each human's centre to the nearest
+    robot body (every capsule's surface: the base and every arm link)."""
+    x = np.asarray(states)
+    P = np.asarray(human_positions, dtype=float)  # (T, H, 2)
+    if P.size == 0:
+        return np.zeros((len(x), 0))
+    kin = robot.CalcKinematics(x[:, : robot.num_positions])
+    ends = kin.capsule_points[..., :2]  # (T, C, 2, 2)
+    d, _, _ = point_segment_distance_2d(
+        ends[:, None, :, 0], ends[:, None, :, 1], P[:, :, None, :]
+    )  # (T, H, C)
+    return np.min(d - robot.capsule_radii[None, None, :], axis=2)
+
+
 def _Lift(x):
     """Planar points (..., 2) as points on the floor (..., 3)."""
     return np.concatenate([x, np.zeros(x.shape[:-1] + (1,))], axis=-1)

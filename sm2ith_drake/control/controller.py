@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from sm2ith_drake.control.cbf import HumanDistances
 from sm2ith_drake.control.htmpc import HierarchicalSolver, MpcSolution
 from sm2ith_drake.control.program import MpcProgram
 from sm2ith_drake.control.tasks import MakeTask
@@ -33,6 +34,9 @@ class ControllerCounters:
     fallbacks: int = 0
     shifted_plan_fallbacks: int = 0
     braking_fallbacks: int = 0
+    # Shifted-plan replays refused because they would close in on a person
+    # faster than the DT-CBF allows (the robot brakes instead).
+    unsafe_replays: int = 0
 
 
 @dataclass
@@ -134,6 +138,7 @@ class MpcController:
             rti_iterations=config.rti_iterations,
             rti_proximal_weight=config.rti_proximal_weight,
         )
+        self.safety = safety or SafetyConfig()
         self.period = ControlPeriod(config)
         self.shift = max(1, int(round(self.period / config.time_step)))
 
@@ -207,6 +212,9 @@ class MpcController:
         else:
             new.counters.fallbacks += 1
             u = self._ReplayPlan(state, nu0)
+            if u is not None and not self._ReplayIsSafe(q0, nu0, u, humans):
+                u = None
+                new.counters.unsafe_replays += 1
             if u is not None:
                 new.plan_age = state.plan_age + 1
                 new.counters.shifted_plan_fallbacks += 1
@@ -239,6 +247,25 @@ class MpcController:
             ).ravel()
         new.record = record
         return new
+
+    def _ReplayIsSafe(self, q0, nu0, u, humans) -> bool:
+        """Whether replaying ``u`` for one control period keeps the DT-CBF
+        h(x₁) ≥ (1 − γ) h(x₀) against every tracked human moving on at its
+        measured velocity (the first-step guard the solved plans obey). A
+        stale plan was made for where people were, not where they are."""
+        if self.predictor is None or humans is None or not len(humans.positions):
+            return True
+        if not (np.all(np.isfinite(q0)) and np.all(np.isfinite(nu0))):
+            return False
+        dt = self.period
+        nu1 = np.clip(nu0 + dt * u, self.robot.nu_lower, self.robot.nu_upper)
+        q1 = q0 + 0.5 * dt * self.robot.G(q0) @ (nu0 + nu1)
+        p0 = np.asarray(humans.positions, dtype=float)
+        p1 = p0 + dt * np.nan_to_num(np.asarray(humans.velocities, dtype=float))
+        reach = self.safety.human_radius + self.safety.human_margin
+        h0 = HumanDistances(self.robot, q0[None], p0[None])[0] - reach
+        h1 = HumanDistances(self.robot, q1[None], p1[None])[0] - reach
+        return bool(np.all(h1 >= (1.0 - self.safety.gamma) * h0 - 1e-9))
 
     def _ReplayPlan(self, state: ControllerState, nu0):
         plan = state.plan

@@ -27,22 +27,8 @@ def LimitViolations(log, robot) -> int:
 # Hall's intimate space: 0.45 m from a human's centre (Section V).
 INTIMATE_DISTANCE = 0.45
 
-
-def HumanDistances(robot, states, human_positions) -> np.ndarray:
-    """(T, H) horizontal distance from each human's centre to the nearest
-    robot body (every capsule's surface: the base and every arm link)."""
-    from sm2ith_drake.control.cbf import point_segment_distance_2d
-
-    x = np.asarray(states)
-    P = np.asarray(human_positions, dtype=float)  # (T, H, 2)
-    if P.size == 0:
-        return np.zeros((len(x), 0))
-    kin = robot.CalcKinematics(x[:, : robot.num_positions])
-    ends = kin.capsule_points[..., :2]  # (T, C, 2, 2)
-    d, _, _ = point_segment_distance_2d(
-        ends[:, None, :, 0], ends[:, None, :, 1], P[:, :, None, :]
-    )  # (T, H, C)
-    return np.min(d - robot.capsule_radii[None, None, :], axis=2)
+# Re-exported: the metrics measure with the controller's own geometry.
+from sm2ith_drake.control.cbf import HumanDistances  # noqa: E402, F401
 
 
 def HumanMetrics(log, robot, human_radii) -> dict:
