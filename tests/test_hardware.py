@@ -155,6 +155,47 @@ def test_generated_types_match_the_lcm_files(tmp_path):
         assert (fresh / name).read_bytes() == (GENERATED / name).read_bytes(), name
 
 
+def test_wheel_ships_the_messages(tmp_path):
+    """pip install . ships the .lcm files and the generated types, importable
+    from an installed wheel (not only from a checkout)."""
+    wheels, site = tmp_path / "wheels", tmp_path / "site"
+    pip = [sys.executable, "-m", "pip"]
+    subprocess.run(
+        [*pip, "wheel", str(ROOT), "--no-deps", "--no-build-isolation", "-q"]
+        + ["-w", str(wheels)],
+        check=True,
+        capture_output=True,
+        timeout=600,
+    )
+    (wheel,) = wheels.glob("sm2ith_drake-*.whl")
+    subprocess.run(
+        [*pip, "install", "--no-deps", "-q", "--target", str(site), str(wheel)],
+        check=True,
+        capture_output=True,
+        timeout=600,
+    )
+    code = (
+        "import importlib.resources as r\n"
+        "from sm2ith_drake.lcm import sm2ith_lcmtypes as t\n"
+        "from sm2ith_drake.lcm.interface import MakeHardwareInterface\n"
+        "print(t.__file__)\n"
+        "print(sorted(p.name for p in r.files('sm2ith_drake.lcm.lcmtypes')"
+        ".iterdir() if p.name.endswith('.lcm')))\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        cwd=tmp_path,
+        env=dict(os.environ, PYTHONPATH=str(site)),
+        check=True,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    where, names = out.stdout.splitlines()
+    assert where.startswith(str(site))
+    assert eval(names) == sorted(p.name for p in LCMTYPES.glob("*.lcm"))
+
+
 def test_messages_round_trip():
     from sm2ith_drake.lcm.driver import MakeDetectionsMessage
     from sm2ith_drake.lcm.interface import (

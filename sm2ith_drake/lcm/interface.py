@@ -800,18 +800,6 @@ def MakeHardwareInterface(*, scenario: Scenario, lcm, robot=None):
 
     builder = DiagramBuilder()
     lcm_system = builder.AddNamedSystem("lcm", LcmInterfaceSystem(lcm))
-    gate = builder.AddNamedSystem(
-        "command_gate",
-        CommandGate(
-            robot,
-            period=period,
-            state_timeout=StateTimeout(scenario),
-            with_people=h.with_people,
-            detection_timeout=h.detection_timeout,
-            detection_stop_timeout=DetectionStopTimeout(scenario),
-            stale_speed_scale=h.stale_detection_speed_scale,
-        ),
-    )
     state_sub = builder.AddNamedSystem(
         "robot_state.subscriber",
         LcmSubscriberSystem.Make(h.state_channel, RawLcmMessage, lcm_system),
@@ -823,10 +811,6 @@ def MakeHardwareInterface(*, scenario: Scenario, lcm, robot=None):
     builder.Connect(state_sub.get_output_port(), state_rx.GetInputPort("lcm_message"))
     builder.ExportOutput(state_rx.GetOutputPort("state"), "state")
     builder.ExportOutput(state_rx.GetOutputPort("state_status"), "state_status")
-    builder.Connect(state_rx.GetOutputPort("state"), gate.GetInputPort("robot_state"))
-    builder.Connect(
-        state_rx.GetOutputPort("state_status"), gate.GetInputPort("state_status")
-    )
     if h.with_people:
         det_sub = builder.AddNamedSystem(
             "detections.subscriber",
@@ -845,6 +829,26 @@ def MakeHardwareInterface(*, scenario: Scenario, lcm, robot=None):
         builder.ExportOutput(
             det_rx.GetOutputPort("detections_status"), "detections_status"
         )
+    # Added after the receivers (its update at a control instant, which reads
+    # the clock, runs just before the controller's) and before the
+    # controller (see MakeHardwareDiagram).
+    gate = builder.AddNamedSystem(
+        "command_gate",
+        CommandGate(
+            robot,
+            period=period,
+            state_timeout=StateTimeout(scenario),
+            with_people=h.with_people,
+            detection_timeout=h.detection_timeout,
+            detection_stop_timeout=DetectionStopTimeout(scenario),
+            stale_speed_scale=h.stale_detection_speed_scale,
+        ),
+    )
+    builder.Connect(state_rx.GetOutputPort("state"), gate.GetInputPort("robot_state"))
+    builder.Connect(
+        state_rx.GetOutputPort("state_status"), gate.GetInputPort("state_status")
+    )
+    if h.with_people:
         builder.Connect(
             det_rx.GetOutputPort("detections_status"),
             gate.GetInputPort("detections_status"),
