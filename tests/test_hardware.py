@@ -445,9 +445,13 @@ def test_stale_robot_state_stops_within_one_control_period():
     assert set(_Modes(bench.commands, t_stop)) == {"stop"}
     gate = bench.Status()["gate"]
     assert gate["stale_state"] >= 4 and gate["mode"] == "stop"
-    # Fresh state again: control resumes.
+    # Fresh state again, from a robot whose clock started over (a restarted
+    # driver): accepted after the outage, and control resumes.
+    bench.utime = 1000
     bench.RunUntil(3.5, feed=feed)
     assert _Modes(bench.commands)[-1] == "control"
+    counters = rx.GetReceiverState(rx.GetMyContextFromRoot(bench.root)).counters
+    assert counters.restarts == 1 and not counters.rejected
 
 
 def test_missing_robot_state_gives_only_stop_commands():

@@ -37,11 +37,11 @@ from sm2ith_drake.lcm.interface import (
     PUBLISH_DELAY,
     CommandMonitor,
     DecodeRobotCommand,
+    LcmMessageReceiver,
     RawLcmMessage,
     ReceiverState,
     StopRequest,
     WallUtime,
-    _Receiver,
 )
 from sm2ith_drake.lcm.sm2ith_lcmtypes import (
     lcmt_sm2ith_human_detections,
@@ -55,7 +55,7 @@ from sm2ith_drake.scenario import (
 from sm2ith_drake.systems.humans import HumanDetections
 
 
-class RobotCommandReceiver(_Receiver):
+class RobotCommandReceiver(LcmMessageReceiver):
     """Decodes and validates the controller's commands (the driver's side).
 
     .. pydrake_system::
@@ -70,8 +70,10 @@ class RobotCommandReceiver(_Receiver):
     ``lcmt_sm2ith_robot_command``.
     """
 
-    def __init__(self, *, num_velocities: int, period: float):
-        super().__init__(period)
+    def __init__(
+        self, *, num_velocities: int, period: float, restart_after: float = math.inf
+    ):
+        super().__init__(period, restart_after)
         self._m = num_velocities
         self.DeclareAbstractOutputPort(
             "command_status",
@@ -79,8 +81,8 @@ class RobotCommandReceiver(_Receiver):
             lambda context, output: output.set_value(self.GetReceiverState(context)),
         )
 
-    def _Validate(self, context, data, old, counters):
-        msg = DecodeRobotCommand(data, num_velocities=self._m, last_utime=old.utime)
+    def _Validate(self, context, data, last_utime, counters):
+        msg = DecodeRobotCommand(data, num_velocities=self._m, last_utime=last_utime)
         return msg.utime, msg
 
 
@@ -286,7 +288,11 @@ def MakeDriverDiagram(
     )
     receiver = builder.AddNamedSystem(
         "command.receiver",
-        RobotCommandReceiver(num_velocities=m, period=hardware.poll_period),
+        RobotCommandReceiver(
+            num_velocities=m,
+            period=hardware.poll_period,
+            restart_after=hardware.driver_command_timeout,
+        ),
     )
     follower = builder.AddNamedSystem(
         "command.follower",
@@ -451,6 +457,7 @@ def DriverSummary(diagram, root) -> dict:
             "received": status.counters.received,
             "accepted": status.counters.accepted,
             "rejected": dict(status.counters.rejected),
+            "restarts": status.counters.restarts,
             "last_error": status.last_error,
         },
         "timing": timing.Summary(),

@@ -225,6 +225,9 @@ class MessageCounters:
 
     received: int = 0
     accepted: int = 0
+    # Accepted although their utime went back, after the stream had been
+    # silent long enough that the sender is taken to have restarted.
+    restarts: int = 0
     # Rejections by reason (see the reason constants).
     rejected: dict = field(default_factory=dict)
 
@@ -259,12 +262,20 @@ class ReceiverState:
         return age
 
 
-class _Receiver(LeafSystem):
-    """Polls an LcmSubscriberSystem's RawLcmMessage output every ``period``
-    and keeps the last message that passes ``_Validate`` (subclasses)."""
+class LcmMessageReceiver(LeafSystem):
+    """The common part of the receivers: polls an LcmSubscriberSystem's
+    RawLcmMessage output every ``period`` and keeps the last message that
+    passes ``_Validate`` (subclasses), counting the others by reason.
 
-    def __init__(self, period: float):
+    A message whose utime is not later than the last accepted one is
+    rejected, unless the stream has been silent for ``restart_after``
+    seconds: then the sender is taken to have restarted (its clock may start
+    over) and the message is accepted and counted in ``restarts``.
+    """
+
+    def __init__(self, period: float, restart_after: float = math.inf):
         super().__init__()
+        self._restart_after = float(restart_after)
         self._raw = self.DeclareAbstractInputPort(
             "lcm_message", AbstractValue.Make(RawLcmMessage())
         )
@@ -289,8 +300,12 @@ class _Receiver(LeafSystem):
         new.counters = copy.deepcopy(old.counters)
         new.sequence = raw.sequence
         new.counters.received += 1
+        restarted = old.Age(context.get_time(), time.time()) > self._restart_after
+        last_utime = 0 if restarted else old.utime
         try:
-            new.utime, new.value = self._Validate(context, raw.data, old, new.counters)
+            new.utime, new.value = self._Validate(
+                context, raw.data, last_utime, new.counters
+            )
         except MessageRejected as e:
             rejected = new.counters.rejected
             rejected[e.reason] = rejected.get(e.reason, 0) + 1
@@ -299,6 +314,8 @@ class _Receiver(LeafSystem):
             self._Idle(context, new, state)
             return
         new.counters.accepted += 1
+        if new.utime <= old.utime:
+            new.counters.restarts += 1
         new.receive_time = context.get_time()
         new.receive_wall = time.time()
         state.get_mutable_abstract_state(self._status).set_value(new)
@@ -306,12 +323,12 @@ class _Receiver(LeafSystem):
     def _Idle(self, context, receiver_state, state) -> None:
         """Called at a poll without a new valid message."""
 
-    def _Validate(self, context, data: bytes, old: ReceiverState, counters):
+    def _Validate(self, context, data: bytes, last_utime: int, counters):
         """Returns (utime, value) or raises MessageRejected."""
         raise NotImplementedError
 
 
-class RobotStateReceiver(_Receiver):
+class RobotStateReceiver(LcmMessageReceiver):
     """Decodes and validates the robot state from LCM.
 
     .. pydrake_system::
@@ -326,11 +343,14 @@ class RobotStateReceiver(_Receiver):
     ``lcm_message`` is the RawLcmMessage of an ``lcmt_sm2ith_robot_state``
     subscriber. ``state`` is [q; ν] of the last accepted message (before the
     first: ``initial_q`` at rest); ``state_status`` the ReceiverState (age,
-    utime, counters).
+    utime, counters). A robot that was silent for ``restart_after`` seconds
+    may start its utime over (a restarted driver).
     """
 
-    def __init__(self, robot, *, initial_q, period: float):
-        super().__init__(period)
+    def __init__(
+        self, robot, *, initial_q, period: float, restart_after: float = math.inf
+    ):
+        super().__init__(period, restart_after)
         self._n, self._m = robot.num_positions, robot.num_velocities
         self._x0 = np.concatenate([np.asarray(initial_q, float), np.zeros(self._m)])
         self.DeclareVectorOutputPort("state", self._n + self._m, self._CalcState)
@@ -340,12 +360,12 @@ class RobotStateReceiver(_Receiver):
             lambda context, output: output.set_value(self.GetReceiverState(context)),
         )
 
-    def _Validate(self, context, data, old, counters):
+    def _Validate(self, context, data, last_utime, counters):
         utime, q, v = DecodeRobotState(
             data,
             num_positions=self._n,
             num_velocities=self._m,
-            last_utime=old.utime,
+            last_utime=last_utime,
         )
         return utime, np.concatenate([q, v])
 
@@ -354,7 +374,7 @@ class RobotStateReceiver(_Receiver):
         output.SetFromVector(self._x0 if value is None else value)
 
 
-class HumanDetectionsReceiver(_Receiver):
+class HumanDetectionsReceiver(LcmMessageReceiver):
     """Decodes and validates motion-capture frames from LCM.
 
     .. pydrake_system::
@@ -379,7 +399,7 @@ class HumanDetectionsReceiver(_Receiver):
     def __init__(self, *, period: float, timeout: float, known_ids=()):
         self._timeout = float(timeout)
         self._known_ids = [int(i) for i in known_ids]
-        super().__init__(period)
+        super().__init__(period, restart_after=timeout)
         self.DeclareAbstractOutputPort(
             "detections",
             lambda: AbstractValue.Make(HumanDetections()),
@@ -396,9 +416,9 @@ class HumanDetectionsReceiver(_Receiver):
         s.value = HumanDetections(time=-math.inf)
         return s
 
-    def _Validate(self, context, data, old, counters):
+    def _Validate(self, context, data, last_utime, counters):
         utime, ids, positions, unknown = DecodeHumanDetections(
-            data, last_utime=old.utime, known_ids=self._known_ids
+            data, last_utime=last_utime, known_ids=self._known_ids
         )
         if unknown:
             counters.rejected[UNKNOWN_ID] = (
@@ -806,7 +826,12 @@ def MakeHardwareInterface(*, scenario: Scenario, lcm, robot=None):
     )
     state_rx = builder.AddNamedSystem(
         "robot_state.receiver",
-        RobotStateReceiver(robot, initial_q=q0, period=h.poll_period),
+        RobotStateReceiver(
+            robot,
+            initial_q=q0,
+            period=h.poll_period,
+            restart_after=StateTimeout(scenario),
+        ),
     )
     builder.Connect(state_sub.get_output_port(), state_rx.GetInputPort("lcm_message"))
     builder.ExportOutput(state_rx.GetOutputPort("state"), "state")
@@ -982,6 +1007,7 @@ def GetHardwareStatus(diagram, root_context) -> dict:
             "received": s.counters.received,
             "accepted": s.counters.accepted,
             "rejected": dict(s.counters.rejected),
+            "restarts": s.counters.restarts,
             "last_error": s.last_error,
         }
     gate = hardware.GetSubsystemByName("command_gate")
