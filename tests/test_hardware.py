@@ -928,9 +928,8 @@ def _Orchestrate(workdir: str, result_path: str) -> None:
         pump(0.3)  # let its last messages in
         last_state_time = max(t for t, _ in states)
         last_q = list(states[-1][1].q)
-        n_before = len(commands)
         pump(2.0)
-        outage = [(t, c) for t, c in commands[n_before:] if t > last_state_time]
+        outage = [(t, c) for t, c in commands if t > last_state_time]
         first_stop = next((t for t, c in outage if c.mode == 2), None)
         report["stop_after_last_state_s"] = (
             None if first_stop is None else first_stop - last_state_time
