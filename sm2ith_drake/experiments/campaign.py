@@ -180,7 +180,7 @@ STUDIES = {
                 ("navigation time", "navigation_time", "s"),
                 ("avg. base deviation", "base_path_deviation", "m"),
                 ("time in intimate space", "intimate_space_time", "s"),
-                ("avg. robot–human distance", "mean_human_distance", "m"),
+                ("avg. human distance", "mean_human_distance", "m"),
             )
         ),
     ),

@@ -108,13 +108,15 @@ def WriteReport(study, rows, out_dir, plots, *, wall_time_s: float, ran: int) ->
     methods = [m.name for m in study.methods]
     ok = [r for r in rows if r.get("status") == "ok"]
     failed = [r for r in rows if r.get("status") != "ok"]
+    busy = sum(float(r.get("wall_time_s") or 0.0) for r in rows)
     lines = [
         f"# Study `{study.name}`",
         "",
         study.description,
         "",
         f"- Runs in the CSV: {len(rows)} ({len(ok)} completed, {len(failed)} "
-        f"failed to run); this invocation ran {ran} in {wall_time_s / 60:.1f} min.",
+        f"failed to run), {busy / 60:.1f} min of run time in all; this "
+        f"invocation ran {ran} in {wall_time_s / 60:.1f} min of wall time.",
         f"- Written {datetime.datetime.now().isoformat(timespec='seconds')}; "
         f"replay any run with `sm2ith replay {study.name}.csv ROW`.",
         "",
