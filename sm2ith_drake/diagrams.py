@@ -205,6 +205,7 @@ def AddControlStack(
     with_estimator: bool = True,
     with_truth_log: bool = False,
     with_people: bool | None = None,
+    max_log_samples: int = 0,
 ) -> ControlStack:
     """Adds the controller side of SM²ITH to ``builder``: the TaskPlanner,
     the HierarchicalMpc, the RunLogger and (with people) the HumanEstimator,
@@ -226,6 +227,7 @@ def AddControlStack(
         with_people: add the human prediction and estimator; defaults to
             whether the scenario lists people (on hardware, people come from
             motion capture whatever the scenario lists).
+        max_log_samples: bound on the RunLogger's samples (0: unbounded).
     """
     n, m = robot.num_positions, robot.num_velocities
     period = ControlPeriod(scenario.controller)
@@ -254,6 +256,7 @@ def AddControlStack(
             tasks,
             period=min(period, 0.05) if has_humans else period,
             with_humans=with_truth_log,
+            max_samples=max_log_samples,
         ),
     )
     builder.Connect(

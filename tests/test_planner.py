@@ -42,3 +42,37 @@ def test_sequence_with_an_unknown_task_is_rejected():
             scenario_name="pick_and_place_ridgeback_ur10",
             scenario_text=text,
         )
+
+
+def test_bounded_run_log_keeps_the_latest_window():
+    from pydrake.systems.analysis import Simulator
+    from pydrake.systems.framework import DiagramBuilder
+
+    from sm2ith_drake.control.tasks import MakeTask
+    from sm2ith_drake.diagrams import AddControlStack, MakeRobot
+    from sm2ith_drake.systems.robot import KinematicRobot
+
+    scenario = LoadScenario(
+        filename=GetDiagramsDir() / "reach.scenarios.yaml",
+        scenario_name="stretch3_reach",
+    )
+    robot = MakeRobot(scenario)
+    tasks = [MakeTask(t, robot.num_positions) for t in scenario.tasks]
+    builder = DiagramBuilder()
+    sim = builder.AddSystem(KinematicRobot(robot, initial_q=robot.default_q))
+    stack = AddControlStack(builder, scenario, robot, tasks, max_log_samples=20)
+    for port in stack.robot_state_inputs:
+        builder.Connect(sim.GetOutputPort("state"), port)
+    builder.Connect(stack.command, sim.GetInputPort("command"))
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    simulator.AdvanceTo(10.0)
+    logger = diagram.GetSubsystemByName("logger")
+    log = logger.GetLog(logger.GetMyContextFromRoot(simulator.get_context()))
+    total = log.dropped_samples + len(log.times)
+    assert 15 <= len(log.times) <= 20 and total >= 49
+    assert log.times[-1] == pytest.approx(10.0)
+    assert all(len(e) == len(log.times) for e in log.task_errors.values())
+    assert len(log.records) + log.dropped_records == log.counters.steps
+    assert log.records[0].time >= log.times[0] - 1e-9
+    assert len(log.stage_errors) == len(log.records)

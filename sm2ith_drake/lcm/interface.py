@@ -970,6 +970,9 @@ def MakeHardwareDiagram(*, scenario: Scenario, lcm, robot=None, tasks=None):
         with_estimator=True,
         with_truth_log=False,
         with_people=h.with_people,
+        # About 15 minutes at 20 Hz: a controller running for hours keeps a
+        # bounded log (its figures then cover the latest window).
+        max_log_samples=20000,
     )
     for port in stack.robot_state_inputs:
         builder.Connect(hardware.GetOutputPort("state"), port)

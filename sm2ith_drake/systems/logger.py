@@ -31,6 +31,10 @@ class RunLog:
     human_positions: list = field(default_factory=list)
     human_velocities: list = field(default_factory=list)
     counters: object = None
+    # Oldest samples / control-step records dropped to keep the log bounded
+    # (RunLogger max_samples; 0 in simulation).
+    dropped_samples: int = 0
+    dropped_records: int = 0
 
 
 class RunLogger(LeafSystem):
@@ -47,8 +51,20 @@ class RunLogger(LeafSystem):
     The log lives in the Context (see :meth:`GetLog`).
     """
 
-    def __init__(self, robot, tasks, *, period: float, with_humans: bool = False):
+    def __init__(
+        self,
+        robot,
+        tasks,
+        *,
+        period: float,
+        with_humans: bool = False,
+        max_samples: int = 0,
+    ):
+        """``max_samples`` > 0 keeps only about the latest that many samples
+        (and control-step records), for a controller that runs for hours on
+        hardware; 0 keeps everything (simulation)."""
         super().__init__()
+        self._max_samples = int(max_samples)
         self._robot = robot
         self._tasks = list(tasks)
         n, m = robot.num_positions, robot.num_velocities
@@ -95,7 +111,9 @@ class RunLogger(LeafSystem):
             truth = self._humans.Eval(context)
             log.human_positions.append(np.array(truth.positions))
             log.human_velocities.append(np.array(truth.velocities))
-        if ctrl.counters.steps == len(log.records):
+        if self._max_samples and len(log.times) > self._max_samples:
+            _DropOldest(log, len(log.times) - (3 * self._max_samples) // 4)
+        if ctrl.counters.steps == len(log.records) + log.dropped_records:
             return  # no control step since the last sample (the initial one)
         log.records.append(ctrl.record)
         sol = ctrl.last_solution
@@ -103,3 +121,20 @@ class RunLogger(LeafSystem):
             log.stage_errors.append([dict(s.errors) for s in sol.stages])
         else:
             log.stage_errors.append(None)
+
+
+def _DropOldest(log: RunLog, count: int) -> None:
+    """Drops the oldest ``count`` samples and the control-step records from
+    before the first sample kept (called once per quarter of the bound, so
+    amortized O(1) per sample)."""
+    for name in ("times", "states", "p_WE", "phases", "human_positions"):
+        del getattr(log, name)[:count]
+    del log.human_velocities[:count]
+    for errors in log.task_errors.values():
+        del errors[:count]
+    first = log.times[0] if log.times else np.inf
+    records = sum(1 for r in log.records if r.time < first)
+    del log.records[:records]
+    del log.stage_errors[:records]
+    log.dropped_samples += count
+    log.dropped_records += records
