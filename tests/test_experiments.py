@@ -234,3 +234,10 @@ def test_ray_executor(tmp_path):
         ray.shutdown()
     assert result.ran == 2
     assert [r["status"] for r in result.rows] == ["ok", "ok"]
+
+
+def test_a_foreign_csv_is_refused(tmp_path):
+    (tmp_path / "adversarial.csv").write_text("run_id,something\nx,1\n")
+    result = _cli("experiment", "adversarial", "--out", str(tmp_path), cwd=tmp_path)
+    assert result.returncode == 2
+    assert "other columns" in result.stderr and "Traceback" not in result.stderr

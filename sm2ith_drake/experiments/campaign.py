@@ -372,10 +372,26 @@ def _Parse(raw: dict) -> dict:
     return out
 
 
+def _CsvColumns(csv_path: Path) -> list:
+    """The columns to append with: the file's own order if it has exactly
+    ours (a CSV from an older version may order them differently)."""
+    if not csv_path.exists():
+        return COLUMNS
+    with open(csv_path, newline="") as f:
+        header = next(csv.reader(f), [])
+    if sorted(header) != sorted(COLUMNS):
+        raise ValueError(
+            f"{csv_path} has other columns than this version writes; "
+            "resume it with the version that wrote it or use a new --out"
+        )
+    return header
+
+
 def _AppendRow(csv_path: Path, row: dict) -> None:
+    fieldnames = _CsvColumns(csv_path)
     new = not csv_path.exists()
     with open(csv_path, "a", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=COLUMNS, extrasaction="ignore")
+        writer = csv.DictWriter(f, fieldnames=fieldnames, extrasaction="ignore")
         if new:
             writer.writeheader()
         writer.writerow({k: _Format(row.get(k, "")) for k in COLUMNS})
@@ -465,6 +481,7 @@ def RunCampaign(
     specs = PlanRuns(study, runs=runs, only=only, duration=duration)
     if not specs:
         raise ValueError(f"no runs in study '{study.name}' match --only {only!r}")
+    _CsvColumns(csv_path)  # a foreign CSV is refused before any run
     finished = {r["run_id"] for r in ReadRows(csv_path) if r.get("status") == "ok"}
     todo = [s for s in specs if s.run_id not in finished]
     skipped = len(specs) - len(todo)
