@@ -181,11 +181,12 @@ class SafetyConfig:
     obstacle_margin: float = 0.05
     # Radius the controller assumes for a tracked human (m).
     human_radius: float = 0.3
-    # Also hold the first step's barrier against every human moving on at its
-    # measured velocity, whatever the prediction expects: an interactive
-    # model may count on people giving way, but the robot never closes in
-    # on one who does not faster than the barrier allows.
-    first_step_guard: bool = True
+    # Also hold the barrier over the first guard_steps steps against every
+    # human moving on at its measured velocity, whatever the prediction
+    # expects: an interactive model may count on people giving way, but the
+    # robot never closes in on one who does not faster than the barrier
+    # allows (0: off; 1: the first step only).
+    guard_steps: int = 3
 
 
 @dataclass
@@ -428,6 +429,8 @@ def ValidateScenario(scenario: Scenario) -> None:
         )
     if not 0 < scenario.safety.gamma <= 1:
         raise ScenarioError("safety.gamma must be in (0, 1]")
+    if scenario.safety.guard_steps < 0:
+        raise ScenarioError("safety.guard_steps must be ≥ 0")
     pc = scenario.perception
     if pc.estimator not in ("kalman", "truth"):
         raise ScenarioError(

@@ -78,11 +78,14 @@ class DtCbfGroup(ConstraintGroup):
     """h_{k+1} − (1 − γ) h_k ≥ 0 for robot capsules vs. humans and walls.
 
     Rows are k-major: for each k, first H × C human rows (human-major), then
-    S × C obstacle rows. With ``first_step_guard``, H × C more rows hold the
-    first step against each human moving on at its *measured* velocity
-    (``SetGuard``), whatever the predictor expects the human to do: an
-    interactive prediction may count on a person giving way, but the robot
-    never closes in on one who does not faster than the barrier allows.
+    S × C obstacle rows. With ``guard_steps`` = G > 0, G × H × C more rows
+    hold the first G steps against each human moving on at its *measured*
+    velocity (``SetGuard``), whatever the predictor expects the human to do:
+    an interactive prediction may count on a person giving way, but the robot
+    never closes in on one who does not faster than the barrier allows. More
+    than one step matters for a robot with inertia: a guard on the first step
+    alone lets the plan build up speed toward a person in the later steps
+    that the next first step can no longer brake.
     """
 
     name = "dt_cbf"
@@ -98,7 +101,7 @@ class DtCbfGroup(ConstraintGroup):
         human_margin,
         obstacle_segments,
         obstacle_margin,
-        first_step_guard=False,
+        guard_steps=0,
     ):
         self._robot = robot
         self._layout = layout
@@ -113,10 +116,12 @@ class DtCbfGroup(ConstraintGroup):
         self._human_offset = robot.capsule_radii[None, :] + human_radius + human_margin
         self._obstacle_offset = robot.capsule_radii[None, :] + obstacle_margin
         self.rows_per_step = (H + S) * C
-        self.num_guard = H * C if first_step_guard else 0
+        self.guard_steps = int(min(max(guard_steps, 0), N))
+        self.num_guard = self.guard_steps * H * C
         self.num_rows = N * self.rows_per_step + self.num_guard
         self.guard_p0 = np.zeros((H, 2))
-        self.guard_p1 = np.zeros((H, 2))
+        self.guard_v0 = np.zeros((H, 2))
+        self.guard_dt = 0.0
         row_blocks, col_blocks = [], []
         for k in range(N):
             base = k * self.rows_per_step
@@ -138,8 +143,9 @@ class DtCbfGroup(ConstraintGroup):
                     row_blocks.append(np.array([base + H * C + s * C + c]))
                     col_blocks.append(np.concatenate([layout.q[k], layout.q[k + 1]]))
         for r in range(self.num_guard):
+            k = r // (H * C)
             row_blocks.append(np.array([N * self.rows_per_step + r]))
-            col_blocks.append(np.concatenate([layout.q[0], layout.q[1]]))
+            col_blocks.append(np.concatenate([layout.q[k], layout.q[k + 1]]))
         # One slack per row under an exact penalty (MpcProgram): zero
         # whenever the hard constraints can be met; when they cannot (a person
         # walking into the robot faster than it can get away), the robot does
@@ -153,27 +159,29 @@ class DtCbfGroup(ConstraintGroup):
             self.rows = self.cols = np.zeros(0, dtype=int)
 
     def SetGuard(self, positions, velocities, time_step):
-        """The measured humans for the first-step guard rows."""
+        """The measured humans for the guard rows."""
         self.guard_p0 = np.asarray(positions, dtype=float).reshape(-1, 2)
-        self.guard_p1 = self.guard_p0 + time_step * np.asarray(
-            velocities, dtype=float
-        ).reshape(-1, 2)
+        self.guard_v0 = np.asarray(velocities, dtype=float).reshape(-1, 2)
+        self.guard_dt = float(time_step)
 
     def _GuardRows(self, point):
-        """h(q_1, p0 + Δt v0) − (1 − γ) h(q_0, p0) and its q_0, q_1 gradients."""
+        """h(q_{k+1}, p0 + (k+1)Δt v0) − (1 − γ) h(q_k, p0 + kΔt v0) for
+        k < G, and their q_k, q_{k+1} gradients."""
+        G = self.guard_steps
         kin = point.kin
-        ends = kin.capsule_points[:2, :, :, :2]  # knots 0, 1
-        jac = kin.capsule_jacobians[:2, :, :, :2, :]
-        A, B = ends[:, None, :, 0], ends[:, None, :, 1]  # (2, 1, C, 2)
-        P = np.stack([self.guard_p0, self.guard_p1])[:, :, None, :]  # (2, H, 1, 2)
-        d, s, nrm = point_segment_distance_2d(A, B, P)  # (2, H, C)
+        ends = kin.capsule_points[: G + 1, :, :, :2]  # knots 0 … G
+        jac = kin.capsule_jacobians[: G + 1, :, :, :2, :]
+        A, B = ends[:, None, :, 0], ends[:, None, :, 1]  # (G+1, 1, C, 2)
+        k = np.arange(G + 1)[:, None, None]
+        P = self.guard_p0[None] + k * self.guard_dt * self.guard_v0[None]
+        d, s, nrm = point_segment_distance_2d(A, B, P[:, :, None, :])  # (G+1, H, C)
         h = d - self._human_offset
         JA, JB = jac[:, None, :, 0], jac[:, None, :, 1]
         Jc = (1 - s)[..., None, None] * JA + s[..., None, None] * JB
-        dq = np.einsum("khci,khcin->khcn", nrm, Jc)  # (2, H, C, n)
+        dq = np.einsum("khci,khcin->khcn", nrm, Jc)  # (G+1, H, C, n)
         a = 1.0 - self.gamma
-        g = h[1] - a * h[0]
-        vals = np.concatenate([-a * dq[0], dq[1]], axis=2)  # (H, C, 2n)
+        g = h[1:] - a * h[:-1]  # (G, H, C)
+        vals = np.concatenate([-a * dq[:-1], dq[1:]], axis=3)  # (G, H, C, 2n)
         return g.ravel(), vals.ravel()
 
     def Barriers(self, point):

@@ -485,7 +485,10 @@ class HierarchicalSolver:
         RTI: each of the ``rti_iterations`` passes linearizes once, at the
         previous pass's result, and solves the whole hierarchy on that one
         linearization, so every stage is feasible given the stage above it.
-        A pass after the first that fails keeps the previous pass's plan.
+        A pass after the first that fails keeps the previous pass's plan. A
+        stage below the first that fails leaves the plan of the stages above
+        it (status "solved through ...": every hard constraint and the higher
+        priorities hold; only the lower tasks go unoptimized for that step).
         """
         start = time.perf_counter()
         program = self.program
@@ -505,7 +508,7 @@ class HierarchicalSolver:
                 if it == 0:
                     success, status, results = False, why, pass_results
                 break
-            z, results = z_pass, pass_results
+            z, results, status = z_pass, pass_results, why
         q, nu, u = program.layout.Split(z)
         kin = program.robot.CalcKinematics(q)
         predictor = program.predictor
@@ -540,7 +543,15 @@ class HierarchicalSolver:
             )
             results.append(result)
             if not result.success:
-                return z, False, f"stage '{stage.name}': {result.status}", results
+                why = f"stage '{stage.name}': {result.status}"
+                if len(results) == 1:
+                    return z, False, why, results
+                # The plan of the stages above meets every hard constraint
+                # (dynamics, limits, barriers) and their priorities; only
+                # this and the lower tasks go unoptimized this step.
+                previous = self.stages[len(results) - 2].name
+                why = f"solved through '{previous}' ({why})"
+                return z, True, why, results[:-1]
             z = result.z
             for task, _ in stage.cost_tasks:
                 lex_bounds[task.name] = (
