@@ -163,3 +163,45 @@ def test_rti_converges_to_the_nlp_solution():
     # The same plan (measured: 8e-7 m apart).
     assert np.max(np.abs(plans["rti"].p_WE - plans["snopt"].p_WE)) < 1e-4
     assert np.max(np.abs(plans["rti"].z - plans["snopt"].z)) < 1e-3
+
+
+def test_failed_lower_stage_keeps_the_plan_above():
+    from sm2ith_drake.control.htmpc import StageResult
+    from sm2ith_drake.diagrams import MakeRobot
+
+    scenario = LoadScenario(filename=CONFLICT, scenario_name="conflict_ee_over_base")
+    robot = MakeRobot(scenario)
+    controller = MpcController(robot, scenario.tasks, scenario.controller)
+    q0 = np.array(robot.default_q, dtype=float)
+    nu0 = np.zeros(robot.num_velocities)
+    targets = {t.name: np.asarray(t.target, dtype=float) for t in controller.tasks}
+    solver = controller.solver
+    z0 = controller.WarmStart(controller.InitialState(), q0, nu0)
+    full = solver.Solve(q0=q0, nu0=nu0, targets=targets, z_guess=z0)
+    assert full.success and full.status == "solved" and len(full.stages) == 2
+
+    first_stage_z = []
+    upper_solve = solver._solvers[0].Solve
+
+    def record(*args, **kwargs):
+        result = upper_solve(*args, **kwargs)
+        first_stage_z.append(result.z.copy())
+        return result
+
+    def fail(point, **kwargs):
+        return StageResult(z=point.z, success=False, status="forced", iterations=0)
+
+    solver._solvers[0].Solve = record
+    solver._solvers[1].Solve = fail
+    partial = solver.Solve(q0=q0, nu0=nu0, targets=targets, z_guess=z0)
+    assert partial.success
+    assert partial.status.startswith("solved through 'ee_position'")
+    assert len(partial.stages) == 1
+    # The plan is the EE stage's (its last pass), not the base stage's.
+    assert np.array_equal(partial.z, first_stage_z[-1])
+    assert not np.allclose(partial.z, full.z)
+
+    # The top stage failing is a failed solve (the controller falls back).
+    solver._solvers[0].Solve = fail
+    failed = solver.Solve(q0=q0, nu0=nu0, targets=targets, z_guess=z0)
+    assert not failed.success and "forced" in failed.status

@@ -175,3 +175,63 @@ def test_stale_plan_is_not_replayed_into_a_person():
     # …but not into the person.
     assert state.record.mode == "brake"
     assert state.counters.unsafe_replays == 1
+
+
+def test_guard_holds_over_its_steps_against_a_person_who_does_not_yield():
+    from sm2ith_drake.control.cbf import HumanDistances
+    from sm2ith_drake.control.controller import MpcController
+    from sm2ith_drake.humans.predictors import HumanEstimate
+
+    scenario, robot, _ = _replay_controller()
+    safety = scenario.safety
+    assert safety.guard_steps == 3
+    reach = safety.human_radius + safety.human_margin
+    a = 1.0 - safety.gamma
+    q0 = np.array(robot.default_q, dtype=float)
+    nu0 = np.zeros(robot.num_velocities)
+    nu0[0] = 0.5  # driving at a person who walks straight at the robot
+    ahead = np.array([3.0, 0.0])
+    while _Gap0(robot, q0, ahead) - reach > 0.6:
+        ahead[0] -= 0.01
+    walking = np.array([-0.6, 0.0])
+    person = HumanEstimate(ids=[1], positions=[ahead], velocities=[walking])
+
+    def barrier(guard_steps):
+        safety.guard_steps = guard_steps
+        controller = MpcController(
+            robot,
+            scenario.tasks,
+            scenario.controller,
+            prediction=scenario.prediction,
+            safety=safety,
+        )
+        targets = {t.name: np.asarray(t.target, dtype=float) for t in controller.tasks}
+        state = controller.Step(
+            controller.InitialState(),
+            time_now=0.0,
+            q0=q0,
+            nu0=nu0,
+            targets=targets,
+            humans=person,
+        )
+        assert state.record.mode == "solved"
+        plan = state.plan
+        # h against the person walking on at the measured velocity.
+        k = np.arange(len(plan.q))[:, None]
+        P = ahead[None] + controller.period * k * walking[None]
+        h = HumanDistances(robot, plan.q, P[:, None])[:, 0] - reach
+        cbf = controller.program.cbf
+        guard = plan.z[cbf.slack][cbf.num_rows - cbf.num_guard :]
+        slots = scenario.prediction.max_humans
+        assert guard.size == guard_steps * slots * robot.capsule_radii.size
+        return h, guard
+
+    h, guard = barrier(3)
+    assert guard.max() < 1e-6  # the guard rows hold without slack
+    for k in range(3):
+        assert h[k + 1] >= a * h[k] - 2e-3, (k, h[: k + 2])
+    # Guarding the first step only, the plan closes in faster afterwards
+    # (it counts on the person giving way, as ORCA predicts).
+    h1, _ = barrier(1)
+    assert h1[1] >= a * h1[0] - 5e-3
+    assert min(h1[2] - a * h1[1], h1[3] - a * h1[2]) < -1e-2
