@@ -184,7 +184,6 @@ def test_guard_holds_over_its_steps_against_a_person_who_does_not_yield():
 
     scenario, robot, _ = _replay_controller()
     safety = scenario.safety
-    assert safety.guard_steps == 3
     reach = safety.human_radius + safety.human_margin
     a = 1.0 - safety.gamma
     q0 = np.array(robot.default_q, dtype=float)
