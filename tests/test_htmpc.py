@@ -205,3 +205,37 @@ def test_failed_lower_stage_keeps_the_plan_above():
     solver._solvers[0].Solve = fail
     failed = solver.Solve(q0=q0, nu0=nu0, targets=targets, z_guess=z0)
     assert not failed.success and "forced" in failed.status
+
+
+def test_joint_too_fast_to_stop_before_its_limit_is_braked_not_infeasible():
+    from sm2ith_drake.diagrams import MakeRobot
+
+    scenario = LoadScenario(
+        filename=GetDiagramsDir() / "reach.scenarios.yaml",
+        scenario_name="stretch3_reach",
+    )
+    robot = MakeRobot(scenario)
+    controller = MpcController(robot, scenario.tasks, scenario.controller)
+    targets = {t.name: np.asarray(t.target, dtype=float) for t in controller.tasks}
+    q0 = np.array(robot.default_q, dtype=float)
+    nu0 = np.zeros(robot.num_velocities)
+    arm = 4  # joint_arm (telescoping): q index 4, ν index 3
+    q0[arm] = robot.q_lower[arm] + 0.03
+    nu0[arm - 1] = robot.nu_lower[arm - 1]  # full speed toward the limit
+    stop = nu0[arm - 1] ** 2 / (2 * robot.nudot_upper[arm - 1])
+    assert stop > 0.03  # it cannot stop before the limit
+
+    state = controller.Step(
+        controller.InitialState(), time_now=0.0, q0=q0, nu0=nu0, targets=targets
+    )
+    assert state.record.mode == "solved", state.record.status
+    # The plan brakes the joint at full deceleration.
+    assert state.plan.nu[1][arm - 1] > nu0[arm - 1]
+    assert state.command_u[arm - 1] == pytest.approx(robot.nudot_upper[arm - 1])
+
+    # Without the braking-consistent bounds the same step is infeasible.
+    controller.program._WidenForBraking = lambda *args: None
+    state = controller.Step(
+        controller.InitialState(), time_now=0.0, q0=q0, nu0=nu0, targets=targets
+    )
+    assert state.record.mode != "solved"

@@ -360,11 +360,38 @@ class MpcProgram:
         # The measured ν may sit marginally outside its limits; pinning it is
         # still consistent because only ν_1.. are bounded by the limits.
         lower[L.nu[0]] = upper[L.nu[0]] = nu0
+        self._WidenForBraking(lower, upper, q0, nu0)
         if self.predictor is not None:
             self.predictor.ApplyBounds(lower, upper)
             if self.cbf is not None and self.cbf.num_guard:
                 self.cbf.SetGuard(self.predictor.p0, self.predictor.v0, self.time_step)
         return lower, upper
+
+    def _WidenForBraking(self, lower, upper, q0, nu0) -> None:
+        """Keeps the problem feasible when an arm joint moves toward a limit
+        too fast to stop before it: at every knot where full braking would
+        still pass the limit, the bound becomes the braking trajectory's
+        position, held for the rest of the horizon once braking has stopped
+        the joint (the plan then brakes that joint; the robot itself stops
+        at the limit). Without this the QP is infeasible and the step falls
+        back, although braking is exactly what the plan should do."""
+        L, dt, robot = self.layout, self.time_step, self.robot
+        n, m = robot.num_positions, robot.num_velocities
+        arm_q = np.arange(3, n)
+        arm_nu = arm_q + (m - n)
+        v = np.asarray(nu0, dtype=float)[arm_nu].copy()
+        if not np.all(np.isfinite(v)) or not np.any(v):
+            return
+        a = np.minimum(-robot.nudot_lower[arm_nu], robot.nudot_upper[arm_nu])
+        q = np.asarray(q0, dtype=float)[arm_q].copy()
+        for k in range(1, L.N + 1):
+            v_next = np.sign(v) * np.maximum(np.abs(v) - a * dt, 0.0)
+            q = q + 0.5 * dt * (v + v_next)
+            v = v_next
+            cols = np.asarray(L.q[k])[arm_q]
+            # Past the limit the joint may stay where braking stopped it.
+            upper[cols] = np.maximum(upper[cols], q)
+            lower[cols] = np.minimum(lower[cols], q)
 
     def MakePoint(self, z: np.ndarray, targets: dict) -> LinearizationPoint:
         q, nu, u = self.layout.Split(z)
