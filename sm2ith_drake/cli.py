@@ -184,6 +184,7 @@ def RunBenchmark(
         "max_ms": float(wall.max()),
         # None when the solver does not report iterations (SNOPT, IPOPT).
         "mean_iterations": None if np.any(iters < 0) else float(iters.mean()),
+        "mean_passes": float(np.mean([r.passes for r in records])),
         "solver_failures": int(
             sum(
                 not r.status.startswith("solved") and not r.status.startswith("overrun")

@@ -168,6 +168,24 @@ class PredictionConfig:
     complementarity_relaxation: float = 1e-5
     # Maximum number of humans the controller tracks (the program's size).
     max_humans: int = 3
+    # Other humans each predicted human reacts to (RVO2's maxNeighbors): the
+    # ones that come closest within the horizon; the robot always counts.
+    # Keeps the program's size linear in the number of people; with
+    # max_neighbors ≥ max_humans − 1 every pair interacts.
+    max_neighbors: int = 4
+    # A current neighbour is only replaced by someone who comes closer by
+    # this much (m), so the neighbour sets, and with them the QP's sparsity
+    # pattern, do not flicker.
+    neighbor_hysteresis: float = 0.5
+    # Whether the QP's Jacobian includes the derivatives of each human's
+    # ORCA lines w.r.t. its neighbours' predicted states. False: block-Jacobi
+    # — the lines are evaluated at the neighbours' current predictions at
+    # every linearization (so a converged plan satisfies the coupled KKT
+    # system exactly) but each human's block is differentiated only w.r.t.
+    # its own and the robot's states; this keeps every human's block coupled
+    # to the robot only, and the factorization cost linear in the number of
+    # people (see README, People).
+    neighbor_derivatives: bool = False
 
 
 @dataclass
@@ -431,6 +449,10 @@ def ValidateScenario(scenario: Scenario) -> None:
         raise ScenarioError(
             f"prediction.max_humans ({pr.max_humans}) < number of humans "
             f"({len(scenario.humans)})"
+        )
+    if pr.max_neighbors < 0 or pr.neighbor_hysteresis < 0:
+        raise ScenarioError(
+            "prediction.max_neighbors and prediction.neighbor_hysteresis must be ≥ 0"
         )
     if not 0 < scenario.safety.gamma <= 1:
         raise ScenarioError("safety.gamma must be in (0, 1]")

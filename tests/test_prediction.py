@@ -8,10 +8,14 @@ from scipy.optimize import minimize
 from sm2ith_drake.control.controller import MpcController
 from sm2ith_drake.humans.orca_kkt import orca_agent_half_planes
 from sm2ith_drake.humans.predictors import HumanEstimate
-from sm2ith_drake.humans.relaxed_orca import relaxed_orca_action
+from sm2ith_drake.humans.relaxed_orca import (
+    relaxed_orca_action,
+    relaxed_orca_actions,
+)
 from sm2ith_drake.robots import MobileManipulator
 from sm2ith_drake.scenario import (
     ControllerConfig,
+    ObstacleConfig,
     PredictionConfig,
     SafetyConfig,
     TaskConfig,
@@ -105,15 +109,38 @@ def _HeadOn(count):
     )
 
 
+def _KktController(robot_name, humans, **prediction):
+    robot = MobileManipulator(robot_name)
+    tasks = [TaskConfig(kind="base_position", target=[4.0, 0.0])]
+    wall = ObstacleConfig(vertices=[[1.5, -0.8], [4.5, -0.8]])
+    return robot, MpcController(
+        robot,
+        tasks,
+        ControllerConfig(),
+        prediction=PredictionConfig(
+            predictor="orca_kkt", max_humans=humans, **prediction
+        ),
+        safety=SafetyConfig(),
+        obstacles=[wall],
+    )
+
+
+def _KktPoint(robot, c, humans):
+    c.predictor.SetHumans(_HeadOn(humans))
+    z = c.WarmStart(c.InitialState(), robot.default_q, np.zeros(robot.num_velocities))
+    z = z + np.random.default_rng(0).normal(scale=0.05, size=z.size)
+    return z, {"base_position": np.array([4.0, 0.0])}
+
+
 @pytest.mark.parametrize("robot_name", ["ridgeback_ur10", "stretch3"])
 def test_kkt_group_jacobians_match_finite_differences(robot_name):
-    robot, c = _Controller(robot_name, "orca_kkt", humans=2)
-    c.predictor.SetHumans(_HeadOn(2))
-    state = c.InitialState()
-    z = c.WarmStart(state, robot.default_q, np.zeros(robot.num_velocities))
-    z = z + np.random.default_rng(0).normal(scale=0.05, size=z.size)
+    """With the neighbours' derivatives (the exact Jacobian), every group's
+    analytic Jacobian matches central differences; three people with one
+    neighbour each and a wall exercise the capped lines and static lines."""
+    robot, c = _KktController(robot_name, 3, max_neighbors=1, neighbor_derivatives=True)
+    z, targets = _KktPoint(robot, c, 3)
+    assert c.predictor.K == 1 and c.predictor.S == 1
     program = c.program
-    targets = {"base_position": np.array([4.0, 0.0])}
     for group, _, _ in program.extra_constraints:
         g0, vals = group.Eval(program.MakePoint(z, targets))
         J = group.DenseJacobian(vals, z.size)
@@ -133,6 +160,86 @@ def test_kkt_group_jacobians_match_finite_differences(robot_name):
                 np.testing.assert_allclose(
                     J[:, i], fd, atol=1e-5, err_msg=f"{group.name} column {i}"
                 )
+
+
+def test_block_jacobi_jacobian_drops_only_the_neighbour_derivatives():
+    """The default (neighbor_derivatives: false) Jacobian of the KKT groups
+    is the exact one without each human's derivatives w.r.t. the other
+    humans' states; the values g(z) are the same."""
+    Js = {}
+    for exact in (True, False):
+        robot, c = _KktController(
+            "ridgeback_ur10", 3, max_neighbors=2, neighbor_derivatives=exact
+        )
+        z, targets = _KktPoint(robot, c, 3)
+        point = c.program.MakePoint(z, targets)
+        Js[exact] = [
+            (group.Eval(point)[0], group.DenseJacobian(group.Eval(point)[1], z.size))
+            for group, _, _ in c.program.extra_constraints[:2]
+        ]
+    pred = c.predictor
+    N, H = pred.N, pred.H
+    human_of_column = np.full(z.size, -1)
+    human_of_column[pred.p] = np.arange(H)[None, :, None]
+    human_of_column[pred.a] = np.arange(H)[None, :, None]
+    rows_per_block = (2, 2 * pred.R)
+    for (g_exact, J_exact), (g_bj, J_bj), per_block in zip(
+        Js[True], Js[False], rows_per_block, strict=True
+    ):
+        np.testing.assert_array_equal(g_exact, g_bj)
+        kkt_rows = N * H * per_block
+        human_of_row = (np.arange(kkt_rows) // per_block) % H
+        cross = (human_of_column[None, :] >= 0) & (
+            human_of_column[None, :] != human_of_row[:, None]
+        )
+        assert np.any(J_exact[:kkt_rows][cross] != 0)
+        np.testing.assert_array_equal(J_bj[:kkt_rows][cross], 0.0)
+        np.testing.assert_array_equal(
+            J_bj[:kkt_rows][~cross], J_exact[:kkt_rows][~cross]
+        )
+        np.testing.assert_array_equal(J_bj[kkt_rows:], J_exact[kkt_rows:])
+
+
+def test_neighbours_are_the_closest_approaches_and_the_pattern_follows():
+    """Each human's neighbours are the humans that come closest within the
+    horizon at constant velocity (not merely the nearest now); with the
+    neighbours' derivatives the sparsity pattern changes with them and the
+    RTI solver rebuilds its QP, which still solves."""
+    robot, c = _KktController(
+        "ridgeback_ur10", 3, max_neighbors=1, neighbor_derivatives=True
+    )
+    # Human 0 at the origin; 1 is nearer now but walks away; 2 is farther
+    # but walks straight at 0.
+    estimate = HumanEstimate(
+        ids=[0, 1, 2],
+        positions=[[5.0, 3.0], [6.0, 3.0], [5.0, 5.5]],
+        velocities=[[0.0, 0.0], [1.5, 0.0], [0.0, -1.2]],
+    )
+    c.predictor.SetHumans(estimate)
+    assert c.predictor.neighbors[0].tolist() == [2]
+    key = c.program.PatternKey()
+    kwargs = dict(
+        time_now=0.0,
+        q0=robot.default_q,
+        nu0=np.zeros(robot.num_velocities),
+        targets={"base_position": np.array([4.0, 0.0])},
+    )
+    state = c.Step(c.InitialState(), humans=estimate, **kwargs)
+    assert state.record.mode == "solved", state.record.status
+    # Human 2 turns away, 1 turns back toward 0: 0's neighbour changes.
+    estimate = HumanEstimate(
+        ids=[0, 1, 2],
+        positions=[[5.0, 3.0], [6.0, 3.0], [5.0, 5.5]],
+        velocities=[[0.0, 0.0], [-1.0, 0.0], [0.0, 1.2]],
+    )
+    state = c.Step(state, humans=estimate, **kwargs)
+    assert c.predictor.neighbors[0].tolist() == [1]
+    assert c.program.PatternKey() != key
+    assert state.record.mode == "solved", state.record.status
+    # Every pair interacts when max_neighbors ≥ H − 1.
+    _, full = _KktController("ridgeback_ur10", 3, max_neighbors=5)
+    full.predictor.SetHumans(estimate)
+    assert full.predictor.neighbors.tolist() == [[1, 2], [0, 2], [0, 1]]
 
 
 def test_warm_start_is_an_exact_kkt_point():
@@ -190,3 +297,111 @@ def test_agent_half_planes_are_symmetric_for_reciprocal_pairs():
         )
         np.testing.assert_allclose(na, -nb, atol=1e-9)
         np.testing.assert_allclose(na @ va - ra, nb @ vb - rb, atol=1e-9)
+
+
+def _RandomOrcaBatch(rng, B, A, S):
+    """B random relaxed-ORCA instances: current and preferred speeds up to and
+    beyond a_max (the speed disc binds), static lines through or near the
+    origin, and agent lines far enough out that the slacks carry much of the
+    cost."""
+    ang = rng.uniform(0, 2 * np.pi, (B, A))
+    ang_o = rng.uniform(0, 2 * np.pi, (B, S))
+    return dict(
+        v_pref=rng.uniform(-2.5, 2.5, (B, 2)),
+        v_current=rng.uniform(-1.5, 1.5, (B, 2)),
+        normals=np.stack([np.cos(ang), np.sin(ang)], axis=-1),
+        offsets=rng.uniform(-0.5, 1.5, (B, A)),
+        static_normals=np.stack([np.cos(ang_o), np.sin(ang_o)], axis=-1),
+        static_offsets=rng.uniform(-0.8, 0.0, (B, S)),
+    )
+
+
+def _ScalarRow(batch, b, **args):
+    return relaxed_orca_action(
+        batch["v_pref"][b],
+        batch["v_current"][b],
+        batch["normals"][b],
+        batch["offsets"][b],
+        static_normals=batch["static_normals"][b],
+        static_offsets=batch["static_offsets"][b],
+        **args,
+    )
+
+
+def test_batched_relaxed_orca_matches_the_scalar_solver():
+    rng = np.random.default_rng(5)
+    rows = speed = static = slack = 0
+    for max_speed, weights in ((1.0, (10, 100)), (1.2, (1, 1)), (1.5, (100, 3))):
+        args = dict(
+            max_speed=max_speed, max_accel=2.0, time_step=0.2, slack_weights=weights
+        )
+        for A in range(1, 7):
+            for S in range(3):
+                batch = _RandomOrcaBatch(rng, 6, A, S)
+                sol = relaxed_orca_actions(**batch, **args)
+                for b in range(6):
+                    ref = _ScalarRow(batch, b, **args)
+                    np.testing.assert_allclose(
+                        sol.velocity[b], ref.velocity, rtol=0, atol=1e-7
+                    )
+                    for name in (
+                        "slack_acceleration",
+                        "slack_velocity",
+                        "multiplier_speed",
+                        "multiplier_acceleration",
+                        "multipliers_agents",
+                        "multipliers_static",
+                    ):
+                        np.testing.assert_allclose(
+                            getattr(sol, name)[b],
+                            getattr(ref, name),
+                            rtol=0,
+                            atol=1e-6,
+                            err_msg=name,
+                        )
+                    assert sol.stationarity_residual[b] < 1e-6
+                    rows += 1
+                    speed += ref.multiplier_speed > 1e-6
+                    static += np.any(ref.multipliers_static > 1e-6)
+                    slack += max(ref.slack_acceleration, *ref.slack_velocity) > 0.3
+    assert rows >= 300
+    # The constrained and heavily relaxed cases are all well represented.
+    assert min(speed, static, slack) >= 30, (speed, static, slack)
+
+
+def test_batched_relaxed_orca_shapes():
+    args = dict(max_speed=1.5, max_accel=2.0, time_step=0.2, slack_weights=(10, 100))
+    rng = np.random.default_rng(6)
+    # No instances.
+    sol = relaxed_orca_actions(**_RandomOrcaBatch(rng, 0, 3, 2), **args)
+    assert sol.velocity.shape == (0, 2)
+    assert sol.slack_velocity.shape == sol.multipliers_agents.shape == (0, 3)
+    assert sol.multipliers_static.shape == (0, 2)
+    for name in (
+        "slack_acceleration",
+        "multiplier_speed",
+        "multiplier_acceleration",
+        "cost",
+        "stationarity_residual",
+    ):
+        assert getattr(sol, name).shape == (0,)
+    # No agent lines (with and without static lines): still the scalar solution.
+    for S in (0, 2):
+        batch = _RandomOrcaBatch(rng, 8, 0, S)
+        sol = relaxed_orca_actions(**batch, **args)
+        assert sol.velocity.shape == (8, 2)
+        assert sol.slack_velocity.shape == sol.multipliers_agents.shape == (8, 0)
+        assert sol.multipliers_static.shape == (8, S)
+        assert sol.cost.shape == sol.stationarity_residual.shape == (8,)
+        for b in range(8):
+            ref = _ScalarRow(batch, b, **args)
+            np.testing.assert_allclose(sol.velocity[b], ref.velocity, atol=1e-7)
+            np.testing.assert_allclose(
+                sol.multiplier_speed[b], ref.multiplier_speed, atol=1e-6
+            )
+        assert np.all(sol.stationarity_residual < 1e-6)
+    # Without static lines at all.
+    batch = _RandomOrcaBatch(rng, 4, 2, 0)
+    del batch["static_normals"], batch["static_offsets"]
+    sol = relaxed_orca_actions(**batch, **args)
+    assert sol.multipliers_static.shape == (4, 0)

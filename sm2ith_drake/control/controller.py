@@ -47,6 +47,7 @@ class StepRecord:
     wall_time: float = 0.0
     solve_time: float = 0.0
     iterations: int = 0
+    passes: int = 0  # RTI passes run (see HierarchicalSolver.Solve)
     success: bool = True
     mode: str = "none"  # "solved" | "shifted_plan" | "brake"
     status: str = ""
@@ -197,6 +198,7 @@ class MpcController:
         if solution is not None:
             record.solve_time = solution.solve_time
             record.iterations = solution.iterations
+            record.passes = solution.passes
             record.status = solution.status
             new.last_solution = solution
         if not ok:

@@ -81,6 +81,8 @@ class MpcSolution:
     # (−1: empty), when the program has a predictor.
     human_predictions: np.ndarray | None = None
     human_slot_ids: np.ndarray | None = None
+    # RTI passes that produced z (1 for the NLP solvers).
+    passes: int = 1
 
 
 class _Qp:
@@ -173,6 +175,8 @@ class _Qp:
 _QP_DEFAULTS = dict(
     verbose=False, eps_abs=1e-7, eps_rel=1e-8, kkt_solver="sparse_ldlt_eq_cond"
 )
+# QP structures (workspaces) kept per stage for recent sparsity patterns.
+_MAX_STRUCTURES = 4
 
 
 def _Linearize(group: ConstraintGroup, point, num_variables):
@@ -200,6 +204,30 @@ class RtiStageSolver:
         self._shared = program.ConstraintGroups()
         self._lex = [program.task_groups[t.name] for t in stage.lexicographic_tasks]
         self._cost = [(program.task_groups[t.name], w) for t, w in stage.cost_tasks]
+        self._settings = dict(_QP_DEFAULTS)
+        self._settings.update(qp_options)
+        # Built structures (QP workspace and index maps) by sparsity pattern:
+        # the pattern changes only when the predictor's neighbour sets do, and
+        # a few recent ones are kept so sets that switch back cost nothing.
+        self._structures: dict = {}
+        self._key = None
+        self._UseStructure()
+
+    def _UseStructure(self):
+        key = self.program.PatternKey()
+        if key == self._key:
+            return
+        structure = self._structures.pop(key, None) or self._BuildStructure()
+        self._structures[key] = structure  # most recent last
+        while len(self._structures) > _MAX_STRUCTURES:
+            self._structures.pop(next(iter(self._structures)))
+        self._key = key
+        for name, value in structure.items():
+            setattr(self, name, value)
+
+    def _BuildStructure(self) -> dict:
+        """The QP workspace and index maps for the groups' current patterns."""
+        nv = self._nv
         # Constraint rows: shared groups, then lexicographic groups. A shared
         # group whose bounds are equal when the stage is built (dynamics,
         # predictor equalities) is an equality for good.
@@ -227,14 +255,12 @@ class RtiStageSolver:
             prows.append(S.row)
             pcols.append(S.col)
         p_pattern = (np.concatenate(prows), np.concatenate(pcols))
-        settings = dict(_QP_DEFAULTS)
-        settings.update(qp_options)
-        self._qp = _Qp(
+        qp = _Qp(
             num_variables=nv,
             p_pattern=p_pattern,
             a_pattern=a_pattern,
             equality_rows=equality_rows,
-            settings=settings,
+            settings=self._settings,
         )
         # The cost Hessian is only nonzero on the diagonal and among the
         # (few) columns the cost groups touch: it is assembled there, small
@@ -244,18 +270,25 @@ class RtiStageSolver:
         )
         local = np.full(nv, -1)
         local[cost_cols] = np.arange(cost_cols.size)
-        self._cost_cols = cost_cols
-        self._cost_local = [local[g.cols] for g, _ in self._cost]
-        prow, pcol = self._qp.p_pattern
-        self._p_row_local, self._p_col_local = local[prow], local[pcol]
-        self._p_in_cost = (self._p_row_local >= 0) & (self._p_col_local >= 0)
-        self._p_diag = prow == pcol
-        self._p_diag_index = prow[self._p_diag]
+        prow, pcol = qp.p_pattern
+        p_row_local, p_col_local = local[prow], local[pcol]
+        p_diag = prow == pcol
+        return dict(
+            _qp=qp,
+            _cost_cols=cost_cols,
+            _cost_local=[local[g.cols] for g, _ in self._cost],
+            _p_row_local=p_row_local,
+            _p_col_local=p_col_local,
+            _p_in_cost=(p_row_local >= 0) & (p_col_local >= 0),
+            _p_diag=p_diag,
+            _p_diag_index=prow[p_diag],
+        )
 
     def Solve(self, point, *, lower, upper, lex_bounds: dict, linearizations: dict):
         """One QP at ``point``. ``lex_bounds`` maps task names to |e*| + tol;
         ``linearizations`` caches (values, c) per group for this point."""
         program, nv = self.program, self._nv
+        self._UseStructure()
 
         def lin(group):
             key = id(group)
@@ -495,9 +528,15 @@ class HierarchicalSolver:
         lower, upper = program.VariableBounds(q0, nu0)
         passes = self.rti_iterations if self.solver_name == "rti" else 1
         z = z_guess
+        passes_run = 0
         results: list[StageResult] = []
         success, status, iterations = True, "solved", 0
         for it in range(passes):
+            if it > 0 and program.predictor is not None:
+                # The next linearization point: this pass's robot plan with
+                # the humans' exact responses to it (see Predictor.Restore).
+                z = z.copy()
+                program.predictor.Restore(z)
             point = program.MakePoint(z, targets)
             z_pass, ok, why, pass_results = self._SolveHierarchy(point, lower, upper)
             if iterations >= 0 and all(r.iterations >= 0 for r in pass_results):
@@ -509,6 +548,7 @@ class HierarchicalSolver:
                     success, status, results = False, why, pass_results
                 break
             z, results, status = z_pass, pass_results, why
+            passes_run = it + 1
         q, nu, u = program.layout.Split(z)
         kin = program.robot.CalcKinematics(q)
         predictor = program.predictor
@@ -525,6 +565,7 @@ class HierarchicalSolver:
             stages=results,
             solve_time=time.perf_counter() - start,
             iterations=int(iterations),
+            passes=passes_run,
         )
 
     def _SolveHierarchy(self, point, lower, upper):

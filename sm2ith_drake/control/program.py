@@ -351,6 +351,11 @@ class MpcProgram:
         self.variable_lower = lower
         self.variable_upper = upper
 
+    def PatternKey(self) -> bytes:
+        """Identifies the groups' current Jacobian sparsity patterns (they
+        change only with the predictor's neighbour sets)."""
+        return getattr(self.predictor, "pattern_key", b"")
+
     def VariableBounds(self, q0: np.ndarray, nu0: np.ndarray):
         """Variable bounds with the initial condition (eq. htmpc_init) pinned."""
         L = self.layout

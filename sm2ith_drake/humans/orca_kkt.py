@@ -5,26 +5,43 @@ For human j at step k (state: positions p_k, velocities v_k of everyone and
 the robot base), the action a = a_{k,j} and slacks ζ = (ζ_a, ζ_v) solve
 
     min  ‖a − v_pref‖² + M_a ζ_a² + M_v ‖ζ_v‖²
-    s.t. c_s  = ‖a‖² − a_max² ≤ 0                        (speed)
-         c_a  = ‖a − v_k‖² − (Δt·acc_max)² − ζ_a ≤ 0       (acceleration)
-         c_i  = ρ_i − n_iᵀa − ζ_v,i ≤ 0                    (agent i's ORCA line)
-         c_o  = ρ_o − n_oᵀa ≤ 0                            (static obstacle lines)
+    s.t. c_s = ‖a‖² − a_max² ≤ 0                          (speed)
+         c_a = ‖a − v_k‖² − (Δt·acc_max)² − ζ_a ≤ 0         (acceleration)
+         c_i = ρ_i − n_iᵀa − ζ_v,i ≤ 0                      (agent i's ORCA line)
+         c_o = ρ_o − n_oᵀa ≤ 0                              (static obstacle lines)
          −ζ ≤ 0,
 
-with (n, ρ) the ORCA half-planes as RVO2 builds them from the state. (The
-paper writes the acceleration slack as tightening the constraint; a slack
-that keeps the QP feasible must relax it, as here.) The MPC carries a, ζ,
-the multipliers λ of c and μ of −ζ ≤ 0 as decision variables, with
+with (n, ρ) the ORCA half-planes as RVO2 builds them from the state (eq.
+relaxed_orca_acc_argmin; the paper writes the acceleration slack as
+tightening the constraint, but a slack that keeps the QP feasible must
+relax it, as here). Its KKT conditions (eqs. smith_kkt_*) are
 
-    stationarity   2(a − v_pref) + 2λ_s a + 2λ_a (a − v_k) − Σ λ_i n_i − Σ λ_o n_o = 0,
-                   2M_a ζ_a − λ_a − μ_a = 0,   2M_v ζ_v,i − λ_i − μ_i = 0,
-    primal         c ≤ 0,   dual  λ, μ ≥ 0,
-    complementarity (relaxed)  λ·c ≥ −ε,  μ·ζ ≤ ε,
+    stationarity in a:  2(a − v_pref) + 2λ_s a + 2λ_a (a − v_k)
+                        − Σ λ_i n_i − Σ λ_o n_o = 0,
+    stationarity in ζ:  2M_a ζ_a − λ_a − μ_a = 0,  2M_v ζ_v,i − λ_i − μ_i = 0,
+    primal c ≤ 0, ζ ≥ 0;  dual λ, μ ≥ 0;  complementarity λ·c = 0, μ·ζ = 0.
 
-and the human dynamics p_{k+1} = p_k + Δt a_k, v_{k+1} = a_k. Exact
-complementarity (ε = 0) violates the usual constraint qualifications; the
-relaxation ε is ``complementarity_relaxation`` (chosen by measurement, see
-the README).
+The slack block is solved exactly and eliminated: if ζ > 0 then μ = 0 and
+λ = 2Mζ; if ζ = 0 then λ + μ = 0 with λ, μ ≥ 0, so λ = μ = 0 = 2Mζ. Hence
+μ ≡ 0 and ζ = λ/(2M) at every KKT point, and the system is equivalent to
+
+    stationarity in a (above),
+    c_s ≤ 0,  ‖a − v_k‖² − (Δt·acc_max)² − λ_a/(2M_a) ≤ 0,
+    ρ_i − n_iᵀa − λ_i/(2M_v) ≤ 0,  c_o ≤ 0,   λ ≥ 0,   λ·c = 0,
+
+in a and λ only (4 + A + S variables per human and step instead of
+6 + 3A + S). The MPC carries a and λ as decision variables, with the human
+dynamics p_{k+1} = p_k + Δt a_k, v_{k+1} = a_k. Exact complementarity
+violates the usual constraint qualifications; it is relaxed to λ·c ≥ −ε with
+ε = ``complementarity_relaxation`` (chosen by measurement, see scenario.py).
+
+Neighbours. As RVO2 (``maxNeighbors``), each human reacts to at most
+``max_neighbors`` other humans (and always to the robot base): the ones that
+come closest within the horizon at constant velocity, chosen once per
+control step (an incumbent is only replaced by someone closer by
+``neighbor_hysteresis``). With max_neighbors ≥ H − 1 every pair interacts.
+This keeps the problem's size linear in the number of people; the sparsity
+pattern changes only when a neighbour set changes (``pattern_key``).
 
 The half-planes depend on the predicted states, so the robot's plan moves
 the predicted humans: that is the interaction. Their Jacobians w.r.t. the
@@ -111,34 +128,41 @@ class OrcaKkt(Predictor):
         self.human_radius = float(human_radius)
         self.robot_radius = robot.model.base_radius
         H = self.H
-        self.A = H  # agent lines per human: H − 1 humans + the robot
+        # Human neighbours per human (RVO2's maxNeighbors), then the robot.
+        self.K = max(0, min(int(config.max_neighbors), H - 1))
+        self.A = self.K + 1  # agent lines per human
         self.S = len(self.segments)
+        self.R = 2 + self.A + self.S  # constraints (multipliers) per human
         self.v_pref = np.zeros((H, 2))
-        # Fixed per agent line (human j's lines: humans i ≠ j, then the robot):
-        # the other humans' indices, the combined radii and the shares.
-        self._others = np.array(
-            [[i for i in range(H) if i != j] for j in range(H)], dtype=int
-        ).reshape(H, H - 1)
+        # neighbors[j]: the humans whose lines human j has (sorted indices).
+        self.neighbors = np.array(
+            [[i for i in range(H) if i != j][: self.K] for j in range(H)], dtype=int
+        ).reshape(H, self.K)
         self._radius = np.full(self.A, 2 * self.human_radius)
         self._radius[-1] = self.human_radius + self.robot_radius
         self._share = np.full(self.A, 0.5)
         self._share[-1] = config.robot_share
+        self._blocks = None
+
+    @property
+    def pattern_key(self) -> bytes:
+        """Changes exactly when the Jacobian sparsity pattern does."""
+        if not self.config.neighbor_derivatives:
+            return b""
+        return self.neighbors.tobytes()
 
     # -------------------------------------------------------------- variables
 
     def AddVariables(self, layout):
         super().AddVariables(layout)
-        N, H, A, S = self.N, self.H, self.A, self.S
+        N, H = self.N, self.H
         self.a = layout.AddVariables("human_a", (N, H, 2))
-        self.zeta_a = layout.AddVariables("human_zeta_a", (N, H))
-        self.zeta_v = layout.AddVariables("human_zeta_v", (N, H, A))
-        self.lam = layout.AddVariables("human_lambda", (N, H, 2 + A + S))
-        self.mu = layout.AddVariables("human_mu", (N, H, 1 + A))
+        self.lam = layout.AddVariables("human_lambda", (N, H, self.R))
 
     def ConstraintGroups(self, program):
-        blocks = _KktBlocks(self, program.layout)
-        self._equality = _KktEqualities(self, blocks)
-        self._inequality = _KktInequalities(self, blocks)
+        self._blocks = _KktBlocks(self, program.layout)
+        self._equality = _KktEqualities(self, self._blocks)
+        self._inequality = _KktInequalities(self, self._blocks)
         eps = self.config.complementarity_relaxation
         lo, hi = self._inequality.Bounds(eps)
         m = self._equality.num_rows
@@ -146,12 +170,42 @@ class OrcaKkt(Predictor):
 
     def ApplyBounds(self, lower, upper):
         lower[self.p[0]] = upper[self.p[0]] = self.p0
-        for idx in (self.zeta_a, self.zeta_v, self.lam, self.mu):
-            lower[idx] = 0.0
+        lower[self.lam] = 0.0
 
     def SetHumans(self, estimate):
         super().SetHumans(estimate)
         self.v_pref = self.v0.copy()
+        neighbors = self.SelectNeighbors()
+        if not np.array_equal(neighbors, self.neighbors):
+            self.neighbors = neighbors
+            if self._blocks is not None:
+                self._blocks.UpdatePattern()
+
+    def SelectNeighbors(self) -> np.ndarray:
+        """Each human's K neighbours: the humans that come closest to it
+        within the horizon if everyone keeps their velocity (active humans
+        before empty slots), incumbents favoured by ``neighbor_hysteresis``
+        so the sets (and the QP's pattern) do not flicker."""
+        H, K = self.H, self.K
+        if K == 0:
+            return np.zeros((H, 0), dtype=int)
+        if K == H - 1:
+            return self.neighbors
+        r = self.p0[None, :] - self.p0[:, None]  # (H, H, 2): i relative to j
+        w = self.v0[None, :] - self.v0[:, None]
+        horizon = self.N * self.dt
+        t = np.clip(
+            -np.sum(r * w, axis=-1) / np.maximum(np.sum(w * w, axis=-1), _EPS),
+            0.0,
+            horizon,
+        )
+        d = np.linalg.norm(r + t[..., None] * w, axis=-1)
+        d[:, ~self.active] += 1e6  # empty slots only as fillers
+        np.fill_diagonal(d, np.inf)
+        rows = np.arange(H)[:, None]
+        d[rows, self.neighbors] -= self.config.neighbor_hysteresis
+        chosen = np.argsort(d, axis=1, kind="stable")[:, :K]
+        return np.sort(chosen, axis=1)
 
     # ---------------------------------------------------------------- model
 
@@ -167,43 +221,48 @@ class OrcaKkt(Predictor):
         vel = np.stack([self.robot.G(q[k]) @ nu[k] for k in range(self.N)])[:, :2]
         return q[:, :2], vel
 
-    def HalfPlanes(self, positions, velocities, robot_p, robot_v):
-        """Agent lines (n (K, H, A, 2), ρ (K, H, A)) and static lines
-        (n (K, H, S, 2), ρ (K, H, S)) for states of shape (K, H, 2)."""
-        K, H = positions.shape[0], self.H
-        others = self._others
-        op = np.concatenate(
-            [
-                positions[:, others],
-                np.broadcast_to(robot_p[:, None, None], (K, H, 1, 2)),
-            ],
-            axis=2,
+    def _AgentStates(self, positions, velocities, robot_p, robot_v):
+        """Each line's own and other agent's states, (K, H, A, 2) each:
+        own p, own v, other p, other v (the robot is the last line)."""
+        T, H, A = positions.shape[0], self.H, self.A
+        shape = (T, H, A, 2)
+        robot_p = np.broadcast_to(robot_p[:, None, None], (T, H, 1, 2))
+        robot_v = np.broadcast_to(robot_v[:, None, None], (T, H, 1, 2))
+        nb = self.neighbors
+        return (
+            np.broadcast_to(positions[:, :, None], shape),
+            np.broadcast_to(velocities[:, :, None], shape),
+            np.concatenate([positions[:, nb], robot_p], axis=2),
+            np.concatenate([velocities[:, nb], robot_v], axis=2),
         )
-        ov = np.concatenate(
-            [
-                velocities[:, others],
-                np.broadcast_to(robot_v[:, None, None], (K, H, 1, 2)),
-            ],
-            axis=2,
-        )
-        radius, share = self._radius, self._share
-        n, rho = orca_agent_half_planes(
-            positions[:, :, None],
-            velocities[:, :, None],
-            op,
-            ov,
-            radius,
-            share,
+
+    def _AgentLines(self, own_p, own_v, other_p, other_v):
+        return orca_agent_half_planes(
+            own_p,
+            own_v,
+            other_p,
+            other_v,
+            self._radius,
+            self._share,
             tau=self.config.tau,
             time_step=self.dt,
         )
+
+    def _StaticLines(self, positions):
         if self.S:
-            no, rho_o = obstacle_half_planes(
+            return obstacle_half_planes(
                 positions, self.segments, self.human_radius, tau_obs=self.config.tau_obs
             )
-        else:
-            no, rho_o = np.zeros((K, H, 0, 2)), np.zeros((K, H, 0))
-        return n, rho, no, rho_o
+        T, H = positions.shape[:2]
+        return np.zeros((T, H, 0, 2)), np.zeros((T, H, 0))
+
+    def HalfPlanes(self, positions, velocities, robot_p, robot_v):
+        """Agent lines (n (T, H, A, 2), ρ (T, H, A)) and static lines
+        (n (T, H, S, 2), ρ (T, H, S)) for states of shape (T, H, 2)."""
+        n, rho = self._AgentLines(
+            *self._AgentStates(positions, velocities, robot_p, robot_v)
+        )
+        return (n, rho) + self._StaticLines(positions)
 
     def LocalState(self, z, layout):
         """The states the k-th QPs depend on, k = 0 … N−1: human positions
@@ -214,111 +273,73 @@ class OrcaKkt(Predictor):
         return p, v, rp, rv
 
     def HalfPlaneDerivatives(self, p, v, rp, rv, h=1e-6):
-        """Half-planes and their central-difference derivatives w.r.t. the
-        local state s = (p (2H), v (2H), rp (2), rv (2)), for all k at once:
-        dn (K, H, A, 2, D), drho (K, H, A, D), dno (K, H, S, 2, D),
-        drho_o (K, H, S, D).
+        """Half-planes and their central-difference derivatives.
 
-        Each agent line depends only on its own human's state and on one
-        other agent's, so every line is differenced at once: 8 perturbations
-        of (own p, own v, other p, other v) and 2 of the static lines' own p,
-        whatever the number of people (differencing every entry of s instead
-        costs 2(4H + 4) evaluations of every line: O(H³) work)."""
-        K, H, A = p.shape[0], self.H, self.A
-        D = 4 * H + 4
-        base = self.HalfPlanes(p, v, rp, rv)
-        shape = (K, H, A, 2)
-        sp = np.broadcast_to(p[:, :, None], shape)
-        sv = np.broadcast_to(v[:, :, None], shape)
-        op = np.concatenate(
-            [p[:, self._others], np.broadcast_to(rp[:, None, None], (K, H, 1, 2))],
-            axis=2,
-        )
-        ov = np.concatenate(
-            [v[:, self._others], np.broadcast_to(rv[:, None, None], (K, H, 1, 2))],
-            axis=2,
-        )
-        # Column of component 0 of each line's own / other p and v in s.
-        own = np.broadcast_to(2 * np.arange(H)[:, None], (H, A))
-        other = np.concatenate([2 * self._others, np.full((H, 1), 4 * H)], axis=1)
-        other_v = np.concatenate(
-            [2 * H + 2 * self._others, np.full((H, 1), 4 * H + 2)], axis=1
-        )
-        columns = (own, own + 2 * H, other, other_v)
-        J = np.broadcast_to(np.arange(H)[:, None], (H, A))
-        L = np.broadcast_to(np.arange(A)[None, :], (H, A))
-        dn = np.zeros((K, H, A, D, 2))
-        drho = np.zeros((K, H, A, D))
-        inputs = [sp, sv, op, ov]
-        for which, col0 in enumerate(columns):
+        Each agent line depends on its own human's state and on one other
+        agent's, so all lines are differenced at once in those 8 inputs:
+        dn (T, H, A, 2, 8), dρ (T, H, A, 8), in the order own p, own v,
+        other p, other v. Static lines depend on the own position only:
+        dn_o (T, H, S, 2, 2), dρ_o (T, H, S, 2)."""
+        states = self._AgentStates(p, v, rp, rv)
+        n, rho = self._AgentLines(*states)
+        no, rho_o = self._StaticLines(p)
+        T, H, A, S = p.shape[0], self.H, self.A, self.S
+        dn = np.zeros((T, H, A, 2, 8))
+        drho = np.zeros((T, H, A, 8))
+        for which in range(4):
             for c in range(2):
-                results = []
+                pm = []
                 for sign in (1.0, -1.0):
-                    args = list(inputs)
+                    args = list(states)
                     args[which] = args[which].copy()
                     args[which][..., c] += sign * h
-                    results.append(
-                        orca_agent_half_planes(
-                            *args,
-                            self._radius,
-                            self._share,
-                            tau=self.config.tau,
-                            time_step=self.dt,
-                        )
-                    )
-                (n_plus, r_plus), (n_minus, r_minus) = results
-                dn[:, J, L, col0 + c] = (n_plus - n_minus) / (2 * h)
-                drho[:, J, L, col0 + c] = (r_plus - r_minus) / (2 * h)
-        dn = np.moveaxis(dn, 3, 4)
-        S = self.S
-        dno = np.zeros((K, H, S, 2, D))
-        drho_o = np.zeros((K, H, S, D))
+                    pm.append(self._AgentLines(*args))
+                dn[..., 2 * which + c] = (pm[0][0] - pm[1][0]) / (2 * h)
+                drho[..., 2 * which + c] = (pm[0][1] - pm[1][1]) / (2 * h)
+        dno = np.zeros((T, H, S, 2, 2))
+        drho_o = np.zeros((T, H, S, 2))
         if S:
-            JS = np.broadcast_to(np.arange(H)[:, None], (H, S))
-            LS = np.broadcast_to(np.arange(S)[None, :], (H, S))
-            dno_t = np.zeros((K, H, S, D, 2))
             for c in range(2):
-                results = []
+                pm = []
                 for sign in (1.0, -1.0):
                     q = p.copy()
                     q[..., c] += sign * h
-                    results.append(
-                        obstacle_half_planes(
-                            q,
-                            self.segments,
-                            self.human_radius,
-                            tau_obs=self.config.tau_obs,
-                        )
-                    )
-                (n_plus, r_plus), (n_minus, r_minus) = results
-                col = 2 * JS + c
-                dno_t[:, JS, LS, col] = (n_plus - n_minus) / (2 * h)
-                drho_o[:, JS, LS, col] = (r_plus - r_minus) / (2 * h)
-            dno = np.moveaxis(dno_t, 3, 4)
-        return base, [dn, drho, dno, drho_o]
+                    pm.append(self._StaticLines(q))
+                dno[..., c] = (pm[0][0] - pm[1][0]) / (2 * h)
+                drho_o[..., c] = (pm[0][1] - pm[1][1]) / (2 * h)
+        return (n, rho, no, rho_o), (dn, drho, dno, drho_o)
 
     def Residuals(self, z, layout):
         """KKT residuals at z (for diagnostics and tests): stationarity (N,
-        H, 2), primal c (N, H, 2+A+S), complementarity λ·c (N, H, 2+A+S)."""
+        H, 2), primal c (N, H, R) and complementarity λ·c (N, H, R), with the
+        slacks eliminated (ζ = λ/2M, module doc)."""
         p, v, rp, rv = self.LocalState(z, layout)
         n, rho, no, rho_o = self.HalfPlanes(p, v, rp, rv)
         return _KktTerms(self, z, v, n, rho, no, rho_o)
 
     def WarmStart(self, z, previous=None, shift=1):
         """Human variables of the guess z: a forward simulation of each
-        human's relaxed-ORCA QP along the robot's guess (positions, actions,
-        slacks and multipliers: an exact KKT point to linearize at)."""
+        human's relaxed-ORCA QP along the robot's guess (positions, actions
+        and multipliers: an exact KKT point to linearize at)."""
         z[self.p[0]] = self.p0
         self.ForwardSimulate(z, self.layout)
 
-    def SolveHumanQp(self, j, v, n, rho, no, rho_o):
-        """Human j's relaxed-ORCA QP (humans/relaxed_orca.py) with its current
-        velocity v and half-planes (agents n, ρ; static no, ρ_o)."""
-        from sm2ith_drake.humans.relaxed_orca import relaxed_orca_action
+    def Restore(self, z):
+        """The humans' exact relaxed-ORCA responses to z's robot plan, so the
+        next SQP pass linearizes the KKT system at a point that satisfies it
+        (a pass linearized at the previous QP's inexact KKT point was primal
+        infeasible in a quarter of the steps with five people)."""
+        self.ForwardSimulate(z, self.layout)
+
+    def SolveHumanQps(self, humans, v, n, rho, no, rho_o):
+        """The relaxed-ORCA QPs (humans/relaxed_orca.py) of the given humans
+        (B,), batched: their current velocities v (B, 2) and half-planes
+        (agents n (B, A, 2), ρ (B, A); static no (B, S, 2), ρ_o (B, S))."""
+        from sm2ith_drake.humans.relaxed_orca import relaxed_orca_actions
 
         cfg = self.config
-        return relaxed_orca_action(
-            self.v_pref[j],
+        return relaxed_orca_actions(
+            self.v_pref[humans],
             v,
             n,
             rho,
@@ -332,50 +353,46 @@ class OrcaKkt(Predictor):
 
     def ForwardSimulate(self, z, layout):
         """Rolls the humans forward with the standalone relaxed-ORCA QP
-        (humans/orca.py), the robot fixed at z's plan; fills a, p, ζ, λ, μ."""
-
+        (humans/relaxed_orca.py), the robot fixed at z's plan; fills a, p, λ."""
         rp_all, rv_all = self._RobotStates(z, layout)
         v = self.v0.copy()
+        active = np.nonzero(self.active)[0]
         for k in range(self.N):
             p = z[self.p[k]]
             n, rho, no, rho_o = self.HalfPlanes(
                 p[None], v[None], rp_all[k : k + 1], rv_all[k : k + 1]
             )
             a = np.zeros((self.H, 2))
-            for j in range(self.H):
-                if not self.active[j]:
-                    for idx in (self.zeta_a, self.zeta_v, self.lam, self.mu):
-                        z[idx[k, j]] = 0.0
-                    continue
-                sol = self.SolveHumanQp(
-                    j, v[j], n[0, j], rho[0, j], no[0, j], rho_o[0, j]
-                )
-                a[j] = sol.velocity
-                z[self.zeta_a[k, j]] = sol.slack_acceleration
-                z[self.zeta_v[k, j]] = sol.slack_velocity
-                z[self.lam[k, j]] = np.concatenate(
-                    [
-                        [sol.multiplier_speed, sol.multiplier_acceleration],
-                        sol.multipliers_agents,
-                        sol.multipliers_static,
-                    ]
-                )
-                z[self.mu[k, j]] = np.concatenate(
-                    [
-                        [sol.multiplier_slack_acceleration],
-                        sol.multipliers_slack_velocity,
-                    ]
-                )
+            lam = np.zeros((self.H, self.R))
+            sol = self.SolveHumanQps(
+                active,
+                v[active],
+                n[0, active],
+                rho[0, active],
+                no[0, active],
+                rho_o[0, active],
+            )
+            a[active] = sol.velocity
+            lam[active] = np.concatenate(
+                [
+                    sol.multiplier_speed[:, None],
+                    sol.multiplier_acceleration[:, None],
+                    sol.multipliers_agents,
+                    sol.multipliers_static,
+                ],
+                axis=1,
+            )
             z[self.a[k]] = a
+            z[self.lam[k]] = lam
             z[self.p[k + 1]] = p + self.dt * a
             v = a
 
 
 def _KktTerms(pred, z, v, n, rho, no, rho_o):
-    """Stationarity in a, primal constraints c and λ·c at z (see module)."""
+    """Stationarity in a, primal constraints c and λ·c at z (module doc)."""
     cfg = pred.config
     a = z[pred.a]  # (N, H, 2)
-    lam = z[pred.lam]  # (N, H, 2+A+S)
+    lam = z[pred.lam]  # (N, H, R)
     A = pred.A
     lam_s, lam_a = lam[..., 0], lam[..., 1]
     lam_i, lam_o = lam[..., 2 : 2 + A], lam[..., 2 + A :]
@@ -390,112 +407,98 @@ def _KktTerms(pred, z, v, n, rho, no, rho_o):
     c_a = (
         np.sum((a - v) ** 2, axis=-1)
         - (pred.dt * cfg.max_acceleration) ** 2
-        - z[pred.zeta_a]
+        - lam_a / (2 * cfg.slack_weight_acceleration)
     )
-    c_i = rho - np.einsum("khid,khd->khi", n, a) - z[pred.zeta_v]
+    c_i = (
+        rho - np.einsum("khid,khd->khi", n, a) - lam_i / (2 * cfg.slack_weight_velocity)
+    )
     c_o = rho_o - np.einsum("khod,khd->kho", no, a)
     c = np.concatenate([c_s[..., None], c_a[..., None], c_i, c_o], axis=-1)
     return stat, c, lam * c
 
 
 class _KktBlocks:
-    """Shared bookkeeping of the two KKT groups: the local columns of each
-    (k, j) block and the derivatives at a point (computed once per point)."""
+    """The local columns of every (k, j) block, shared by both KKT groups,
+    and the derivatives at a point (computed once per point).
+
+    Local columns of block (k, j): a (2), λ (R), then the state: own p (2),
+    own v (2), each human neighbour's p and v (4 each), the robot base's
+    (x, y, θ) and base velocities ν_base (nb). A column whose value is a
+    constant of the step (v_0 of every human) maps to −1 and is dropped."""
 
     def __init__(self, pred, layout):
         self.pred = pred
         self.layout = layout
-        N, H, A, S = pred.N, pred.H, pred.A, pred.S
-        self.R = 2 + A + S
+        self.R = pred.R
         self.nb = 3 if pred.robot.base_kind == "holonomic" else 2
-
-        def own(k, j):
-            return np.concatenate(
-                [
-                    pred.a[k, j],
-                    [pred.zeta_a[k, j]],
-                    pred.zeta_v[k, j],
-                    pred.lam[k, j],
-                    pred.mu[k, j],
-                ]
-            )
-
-        self.num_own = 2 + 1 + A + self.R + 1 + A
-        self.cols = {}
-        for k in range(N):
-            state = [pred.p[k].ravel()]
-            if k > 0:
-                state.append(pred.a[k - 1].ravel())
-            state += [layout.q[k][:3], layout.nu[k][: self.nb]]
-            for j in range(H):
-                self.cols[k, j] = np.concatenate([own(k, j)] + state)
-        o = self.num_own
-        self.ip = slice(o, o + 2 * H)
-        self.iv = slice(o + 2 * H, o + 4 * H)
-        self.iq = slice(o + 4 * H, o + 4 * H + 3)
-        self.inu = slice(o + 4 * H + 3, o + 4 * H + 3 + self.nb)
-        self.width = o + 4 * H + 3 + self.nb
-        self.keep0 = np.r_[np.arange(o + 2 * H), np.arange(o + 4 * H, self.width)]
+        self.ilam = 2
+        self.io = 2 + self.R  # own p, then own v
+        self.inb = self.io + 4  # neighbour i: inb + 4i … inb + 4i + 3
+        self.iq = self.inb + 4 * pred.K
+        self.inu = self.iq + 3
+        self.width = self.inu + self.nb
+        self.groups = []
         self._cache = {"key": None}
+        self.columns = self._Columns()
 
-    def AgentColumns(self, j, i):
-        """Local state columns of human j's i-th other agent (the humans
-        i ≠ j in order, then the robot base)."""
-        H = self.pred.H
-        if i < H - 1:
-            other = [h for h in range(H) if h != j][i]
-            return np.r_[
-                self.ip.start + 2 * other + np.arange(2),
-                self.iv.start + 2 * other + np.arange(2),
-            ]
-        return np.r_[
-            np.arange(self.iq.start, self.iq.stop),
-            np.arange(self.inu.start, self.inu.stop),
-        ]
+    def _Columns(self):
+        """(N, H, width) global column of every local column (−1: constant)."""
+        pred, layout = self.pred, self.layout
+        N, H, K = pred.N, pred.H, pred.K
+        C = np.full((N, H, self.width), -1, dtype=int)
+        C[:, :, 0:2] = pred.a
+        C[:, :, self.ilam : self.ilam + self.R] = pred.lam
+        C[:, :, self.io : self.io + 2] = pred.p[:-1]
+        C[1:, :, self.io + 2 : self.io + 4] = pred.a[:-1]
+        for i in range(K if pred.config.neighbor_derivatives else 0):
+            other = pred.neighbors[:, i]
+            c0 = self.inb + 4 * i
+            C[:, :, c0 : c0 + 2] = pred.p[:-1][:, other]
+            C[1:, :, c0 + 2 : c0 + 4] = pred.a[:-1][:, other]
+        C[:, :, self.iq : self.iq + 3] = np.asarray(layout.q)[:-1, None, :3]
+        C[:, :, self.inu :] = np.asarray(layout.nu)[:-1, None, : self.nb]
+        return C
 
-    def OwnStateColumns(self, j):
-        return (
-            self.ip.start + 2 * j + np.arange(2),
-            self.iv.start + 2 * j + np.arange(2),
+    def UpdatePattern(self):
+        """After the neighbour sets changed: new columns, new patterns."""
+        self.columns = self._Columns()
+        self._cache = {"key": None}
+        for group in self.groups:
+            group.UpdatePattern()
+
+    def Pattern(self, mask, rows_per_block, row_offset=0):
+        """The structural nonzeros of ``mask`` (rows, width) in every block:
+        (rows, cols, gather) with ``gather`` the flat index of each value in
+        a dense (N, H, rows, width) array of local Jacobians."""
+        N, H = self.pred.N, self.pred.H
+        rr, cc = np.nonzero(mask)
+        cols = self.columns[:, :, cc]  # (N, H, nnz)
+        block = np.arange(N * H).reshape(N, H)[..., None]
+        rows = row_offset + block * rows_per_block + rr
+        gather = (block * rows_per_block + rr) * self.width + cc
+        keep = cols >= 0
+        return rows[keep], cols[keep], gather[keep]
+
+    def StateDerivatives(self, J, rows, dX_own, dX_other, e):
+        """Adds the derivatives of local rows w.r.t. the state to J.
+
+        dX_own (N, H, r, 4): w.r.t. the own (p, v); dX_other (N, H, r, A, 4):
+        through line i w.r.t. its other agent's (p, v), the robot last (its
+        velocity is mapped through G(q)ν to (θ, ν_base))."""
+        pred, K = self.pred, self.pred.K
+        J[:, :, rows, self.io : self.io + 4] += dX_own
+        J[:, :, rows, self.inb : self.iq] += dX_other[..., :K, :].reshape(
+            dX_other.shape[:3] + (4 * K,)
         )
-
-    def _Mask(self, masks, k, j):
-        return masks[j] if k > 0 else masks[j][:, self.keep0]
-
-    def Pattern(self, row_offset_of, masks):
-        """Rows and columns of the structural nonzeros ``masks`` (H, rows,
-        width) of every (k, j) block (k = 0 has no velocity columns)."""
-        rows, cols = [], []
-        for (k, j), block_cols in self.cols.items():
-            rr, cc = np.nonzero(self._Mask(masks, k, j))
-            rows.append(row_offset_of(k, j) + rr)
-            cols.append(block_cols[cc])
-        return np.concatenate(rows), np.concatenate(cols)
-
-    def Flatten(self, J, masks):
-        """The values of dense local Jacobians J (N, H, rows, width) at the
-        structural nonzeros, in the pattern's order."""
-        out = []
-        for k, j in self.cols:
-            block = J[k, j] if k > 0 else J[k, j][:, self.keep0]
-            out.append(block[self._Mask(masks, k, j)])
-        return np.concatenate(out)
-
-    def StateToColumns(self, dX, q, nu):
-        """Maps derivatives w.r.t. the local state (…, D) (k-leading) to the
-        state columns (…, 4H + 3 + nb) through the robot's base velocity."""
-        pred, H = self.pred, self.pred.H
-        N = dX.shape[0]
-        out = np.zeros(dX.shape[:-1] + (4 * H + 3 + self.nb,))
-        out[..., : 4 * H] = dX[..., : 4 * H]
-        out[..., 4 * H : 4 * H + 2] = dX[..., 4 * H : 4 * H + 2]
-        drv = dX[..., 4 * H + 2 : 4 * H + 4]  # w.r.t. the robot base velocity
-        for k in range(N):
+        robot = dX_other[..., K, :]  # (N, H, r, 4)
+        J[:, :, rows, self.iq : self.iq + 2] += robot[..., 0:2]
+        drv = robot[..., 2:4]  # w.r.t. the base's world velocity
+        q, nu = e["q"], e["nu"]
+        for k in range(pred.N):
             G = pred.robot.G(q[k])[:2, : self.nb]
             dth = pred.robot.dGnu_dq(q[k], nu[k])[:2, 2]
-            out[k, ..., 4 * H + 2] = drv[k] @ dth
-            out[k, ..., 4 * H + 3 :] = drv[k] @ G
-        return out
+            J[k, :, rows, self.iq + 2] += drv[k] @ dth
+            J[k, :, rows, self.inu :] += drv[k] @ G
 
     def Evaluate(self, point):
         """Everything both groups need at a point, cached by the point."""
@@ -529,28 +532,19 @@ class _KktBlocks:
 
 
 class _KktEqualities(ConstraintGroup):
-    """Stationarity of every human's QP and the human dynamics (= 0)."""
+    """Stationarity in a of every human's QP and the human dynamics (= 0)."""
 
     name = "orca_kkt_equalities"
 
     def __init__(self, pred, blocks):
         self.pred = pred
         self.blocks = blocks
-        N, H, A = pred.N, pred.H, pred.A
-        self.re = 2 + 1 + A
-        self.num_kkt = N * H * self.re
+        N, H = pred.N, pred.H
+        self.num_kkt = N * H * 2
         self.num_rows = self.num_kkt + N * H * 2
-        b, R = self.blocks, self.blocks.R
-        ilam, imu = 3 + A, 3 + A + R
-        self.masks = np.zeros((H, self.re, b.width), dtype=bool)
-        m = self.masks
-        m[:, 0:2, 0:2] = True  # stationarity in a: a, every λ, every state
-        m[:, 0:2, ilam : ilam + R] = True
-        m[:, 0:2, b.ip.start :] = True
-        m[:, 2, [2, ilam + 1, imu]] = True  # in ζ_a
-        for i in range(A):  # in ζ_v,i
-            m[:, 3 + i, [3 + i, ilam + 2 + i, imu + 1 + i]] = True
-        kkt_rows, kkt_cols = b.Pattern(lambda k, j: (k * H + j) * self.re, m)
+        b = blocks
+        # Stationarity depends on a, every λ and the whole local state.
+        self.mask = np.ones((2, b.width), dtype=bool)
         row_blocks, col_blocks = [], []
         for k in range(N):
             for j in range(H):
@@ -558,152 +552,124 @@ class _KktEqualities(ConstraintGroup):
                 col_blocks.append(
                     np.concatenate([pred.p[k + 1, j], pred.p[k, j], pred.a[k, j]])
                 )
-        dyn_rows, dyn_cols = _BlockPattern(row_blocks, col_blocks)
-        self.rows = np.concatenate([kkt_rows, dyn_rows])
-        self.cols = np.concatenate([kkt_cols, dyn_cols])
+        self._dyn_rows, self._dyn_cols = _BlockPattern(row_blocks, col_blocks)
+        blocks.groups.append(self)
+        self.UpdatePattern()
+
+    def UpdatePattern(self):
+        rows, cols, self._gather = self.blocks.Pattern(self.mask, 2)
+        self.rows = np.concatenate([rows, self._dyn_rows])
+        self.cols = np.concatenate([cols, self._dyn_cols])
 
     def Eval(self, point):
         pred, b = self.pred, self.blocks
         e = b.Evaluate(point)
         z = point.z
         N, H, A, R = pred.N, pred.H, pred.A, b.R
-        cfg = pred.config
         a, lam = z[pred.a], z[pred.lam]
         v = e["v"]
-        J = np.zeros((N, H, self.re, b.width))
+        J = np.zeros((N, H, 2, b.width))
         eye = np.eye(2)
-        # Stationarity in a.
-        J[:, :, 0:2, 0:2] = (2 + 2 * lam[..., 0] + 2 * lam[..., 1])[
-            ..., None, None
-        ] * eye
-        ilam = 3 + A
-        J[:, :, 0:2, ilam] = 2 * a
-        J[:, :, 0:2, ilam + 1] = 2 * (a - v)
-        J[:, :, 0:2, ilam + 2 : ilam + 2 + A] = -np.swapaxes(e["n"], -1, -2)
-        J[:, :, 0:2, ilam + 2 + A : ilam + R] = -np.swapaxes(e["no"], -1, -2)
-        dX = -(
-            np.einsum("khi,khidx->khdx", lam[..., 2 : 2 + A], e["dn"])
-            + np.einsum("kho,khodx->khdx", lam[..., 2 + A :], e["dno"])
-        )
-        J[:, :, 0:2, b.ip.start :] = b.StateToColumns(dX, e["q"], e["nu"])
-        for j in range(H):  # the explicit v_k of human j (k ≥ 1 columns)
-            J[:, j, 0:2, b.iv.start + 2 * j : b.iv.start + 2 * j + 2] += (
-                -2 * lam[:, j, 1][:, None, None] * eye
-            )
-        # Stationarity in ζ_a and ζ_v.
-        imu = ilam + R
-        J[:, :, 2, 2] = 2 * cfg.slack_weight_acceleration
-        J[:, :, 2, ilam + 1] = -1.0
-        J[:, :, 2, imu] = -1.0
-        for i in range(A):
-            J[:, :, 3 + i, 3 + i] = 2 * cfg.slack_weight_velocity
-            J[:, :, 3 + i, ilam + 2 + i] = -1.0
-            J[:, :, 3 + i, imu + 1 + i] = -1.0
-        g_stat_za = (
-            2 * cfg.slack_weight_acceleration * z[pred.zeta_a]
-            - lam[..., 1]
-            - z[pred.mu][..., 0]
-        )
-        g_stat_zv = (
-            2 * cfg.slack_weight_velocity * z[pred.zeta_v]
-            - lam[..., 2 : 2 + A]
-            - z[pred.mu][..., 1:]
-        )
-        g_kkt = np.concatenate([e["stat"], g_stat_za[..., None], g_stat_zv], axis=-1)
+        J[:, :, :, 0:2] = (2 + 2 * lam[..., 0] + 2 * lam[..., 1])[..., None, None] * eye
+        il = b.ilam
+        J[:, :, :, il] = 2 * a
+        J[:, :, :, il + 1] = 2 * (a - v)
+        J[:, :, :, il + 2 : il + 2 + A] = -np.swapaxes(e["n"], -1, -2)
+        J[:, :, :, il + 2 + A : il + R] = -np.swapaxes(e["no"], -1, -2)
+        # −Σ λ_i ∂n_i/∂x − Σ λ_o ∂n_o/∂x, and −2λ_a ∂v/∂v_own.
+        lam_i = lam[..., 2 : 2 + A]
+        dn = e["dn"]  # (N, H, A, 2, 8)
+        dX_own = -np.einsum("khi,khidx->khdx", lam_i, dn[..., :4])
+        dX_own[..., 0:2] -= np.einsum("kho,khodx->khdx", lam[..., 2 + A :], e["dno"])
+        dX_own[..., 2:4] -= 2 * lam[..., 1, None, None] * eye
+        dX_other = -np.einsum("khi,khidx->khdix", lam_i, dn[..., 4:])
+        b.StateDerivatives(J, slice(0, 2), dX_own, dX_other, e)
         # Dynamics p_{k+1} − p_k − Δt a_k.
         p = z[pred.p]
         g_dyn = p[1:] - p[:-1] - pred.dt * a
         block = np.concatenate([eye, -eye, -pred.dt * eye], axis=1)  # (2, 6)
         vals_dyn = np.broadcast_to(block, (N, H, 2, 6)).reshape(-1)
-        g = np.concatenate([g_kkt.reshape(-1), g_dyn.reshape(-1)])
-        return g, np.concatenate([b.Flatten(J, self.masks), vals_dyn])
+        g = np.concatenate([e["stat"].reshape(-1), g_dyn.reshape(-1)])
+        return g, np.concatenate([J.reshape(-1)[self._gather], vals_dyn])
 
 
 class _KktInequalities(ConstraintGroup):
-    """Primal feasibility c ≤ 0 and relaxed complementarity λ·c ≥ −ε,
-    μ·ζ ≤ ε of every human's QP (dual feasibility λ, μ ≥ 0 are bounds)."""
+    """Primal feasibility c ≤ 0 and relaxed complementarity λ·c ≥ −ε of
+    every human's QP (dual feasibility λ ≥ 0 is a bound)."""
 
     name = "orca_kkt_inequalities"
 
     def __init__(self, pred, blocks):
         self.pred = pred
         self.blocks = blocks
-        N, H, A = pred.N, pred.H, pred.A
-        R = self.blocks.R
-        self.ri = 2 * R + 1 + A
+        N, H, A, K = pred.N, pred.H, pred.A, pred.K
+        b, R = blocks, blocks.R
+        self.ri = 2 * R
         self.num_rows = N * H * self.ri
-        b = self.blocks
-        ilam, imu = 3 + A, 3 + A + R
-        self.masks = np.zeros((H, self.ri, b.width), dtype=bool)
-        for j in range(H):
-            m = self.masks[j]
-            own_p, own_v = b.OwnStateColumns(j)
-            primal = np.zeros((R, b.width), dtype=bool)
-            primal[:, 0:2] = True  # every c depends on a
-            primal[1, 2] = True  # c_a: ζ_a and v_j
-            primal[1, own_v] = True
-            for i in range(A):  # agent lines: ζ_v,i, own and agent i's state
-                primal[2 + i, 3 + i] = True
-                primal[2 + i, own_p] = True
-                primal[2 + i, own_v] = True
-                primal[2 + i, b.AgentColumns(j, i)] = True
-            primal[2 + A :, own_p] = True  # static lines: own position only
-            m[:R] = primal
-            m[R : 2 * R] = primal
-            m[R + np.arange(R), ilam + np.arange(R)] = True
-            for r in range(1 + A):
-                m[2 * R + r, [2 + r, imu + r]] = True
-        self.rows, self.cols = b.Pattern(lambda k, j: (k * H + j) * self.ri, self.masks)
+        primal = np.zeros((R, b.width), dtype=bool)
+        primal[:, 0:2] = True  # every c depends on a
+        own_p = np.arange(b.io, b.io + 2)
+        own_v = own_p + 2
+        primal[1, [b.ilam + 1, *own_v]] = True  # c_a: λ_a, v_own
+        for i in range(A):  # agent lines: λ_i, own and agent i's state
+            r = 2 + i
+            primal[r, b.ilam + r] = True
+            primal[r, b.io : b.io + 4] = True
+            if i < K:
+                primal[r, b.inb + 4 * i : b.inb + 4 * i + 4] = True
+            else:
+                primal[r, b.iq :] = True
+        primal[2 + A :, own_p] = True  # static lines: own position only
+        self.mask = np.concatenate([primal, primal], axis=0)
+        self.mask[R + np.arange(R), b.ilam + np.arange(R)] = True
+        blocks.groups.append(self)
+        self.UpdatePattern()
+
+    def UpdatePattern(self):
+        self.rows, self.cols, self._gather = self.blocks.Pattern(self.mask, self.ri)
 
     def Bounds(self, eps):
-        pred, R = self.pred, self.blocks.R
-        lo = np.concatenate(
-            [np.full(R, -np.inf), np.full(R, -eps), np.full(1 + pred.A, -np.inf)]
-        )
-        hi = np.concatenate([np.zeros(R), np.full(R, np.inf), np.full(1 + pred.A, eps)])
-        count = pred.N * pred.H
+        R = self.blocks.R
+        lo = np.concatenate([np.full(R, -np.inf), np.full(R, -eps)])
+        hi = np.concatenate([np.zeros(R), np.full(R, np.inf)])
+        count = self.pred.N * self.pred.H
         return np.tile(lo, count), np.tile(hi, count)
 
     def Eval(self, point):
         pred, b = self.pred, self.blocks
         e = b.Evaluate(point)
         z = point.z
+        cfg = pred.config
         N, H, A, R = pred.N, pred.H, pred.A, b.R
-        a, lam, mu = z[pred.a], z[pred.lam], z[pred.mu]
+        a, lam = z[pred.a], z[pred.lam]
         v, c = e["v"], e["c"]
-        # Primal rows: dc (N, H, R, width).
+        il = b.ilam
         dc = np.zeros((N, H, R, b.width))
         dc[:, :, 0, 0:2] = 2 * a
         dc[:, :, 1, 0:2] = 2 * (a - v)
-        dc[:, :, 1, 2] = -1.0
-        for j in range(H):
-            dc[:, j, 1, b.iv.start + 2 * j : b.iv.start + 2 * j + 2] = (
-                -2 * (a - v)[:, j]
-            )
+        dc[:, :, 1, il + 1] = -0.5 / cfg.slack_weight_acceleration
+        dc[:, :, 1, b.io + 2 : b.io + 4] = -2 * (a - v)
         dc[:, :, 2 : 2 + A, 0:2] = -e["n"]
         dc[:, :, 2 + A :, 0:2] = -e["no"]
-        for i in range(A):
-            dc[:, :, 2 + i, 3 + i] = -1.0
-        dX_i = e["drho"] - np.einsum("khidx,khd->khix", e["dn"], a)
-        dX_o = e["drho_o"] - np.einsum("khodx,khd->khox", e["dno"], a)
-        dc[:, :, 2:, b.ip.start :] += b.StateToColumns(
-            np.concatenate([dX_i, dX_o], axis=2), e["q"], e["nu"]
+        dc[:, :, np.arange(2, 2 + A), il + np.arange(2, 2 + A)] = (
+            -0.5 / cfg.slack_weight_velocity
         )
+        # Agent line i: ∂(ρ_i − n_iᵀa)/∂x through its own and other state.
+        dX = e["drho"] - np.einsum("khidx,khd->khix", e["dn"], a)  # (N,H,A,8)
+        dX_own = np.zeros((N, H, R, 4))
+        dX_own[:, :, 2 : 2 + A] = dX[..., :4]
+        dX_own[:, :, 2 + A :, 0:2] = e["drho_o"] - np.einsum(
+            "khodx,khd->khox", e["dno"], a
+        )
+        dX_other = np.zeros((N, H, R, A, 4))
+        dX_other[:, :, np.arange(2, 2 + A), np.arange(A)] = dX[..., 4:]
+        b.StateDerivatives(dc, slice(0, R), dX_own, dX_other, e)
         # Complementarity λ_r c_r.
-        ilam = 3 + A
         dlc = lam[..., None] * dc
-        for r in range(R):
-            dlc[:, :, r, ilam + r] += c[..., r]
-        # μ·ζ.
-        zeta = np.concatenate([z[pred.zeta_a][..., None], z[pred.zeta_v]], axis=-1)
-        dmz = np.zeros((N, H, 1 + A, b.width))
-        imu = ilam + R
-        for r in range(1 + A):
-            dmz[:, :, r, 2 + r] = mu[..., r]
-            dmz[:, :, r, imu + r] = zeta[..., r]
-        g = np.concatenate([c, e["lc"], mu * zeta], axis=-1)
-        J = np.concatenate([dc, dlc, dmz], axis=2)
-        return g.reshape(-1), b.Flatten(J, self.masks)
+        dlc[:, :, np.arange(R), il + np.arange(R)] += c
+        g = np.concatenate([c, e["lc"]], axis=-1)
+        J = np.concatenate([dc, dlc], axis=2)
+        return g.reshape(-1), J.reshape(-1)[self._gather]
 
 
 def PredictionConsistency(predictor, z, layout) -> np.ndarray:
@@ -715,11 +681,14 @@ def PredictionConsistency(predictor, z, layout) -> np.ndarray:
     n, rho, no, rho_o = predictor.HalfPlanes(p, v, rp, rv)
     a = z[predictor.a]
     active = np.nonzero(predictor.active)[0]
-    errors = np.zeros((predictor.N, len(active)))
-    for k in range(predictor.N):
-        for col, j in enumerate(active):
-            sol = predictor.SolveHumanQp(
-                j, v[k, j], n[k, j], rho[k, j], no[k, j], rho_o[k, j]
-            )
-            errors[k, col] = np.linalg.norm(sol.velocity - a[k, j])
-    return errors
+    N, B = predictor.N, len(active)
+    humans = np.tile(active, N)
+    sol = predictor.SolveHumanQps(
+        humans,
+        v[:, active].reshape(N * B, 2),
+        n[:, active].reshape(N * B, predictor.A, 2),
+        rho[:, active].reshape(N * B, predictor.A),
+        no[:, active].reshape(N * B, predictor.S, 2),
+        rho_o[:, active].reshape(N * B, predictor.S),
+    )
+    return np.linalg.norm(sol.velocity.reshape(N, B, 2) - a[:, active], axis=-1)

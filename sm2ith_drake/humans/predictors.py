@@ -107,6 +107,11 @@ class Predictor:
         """Fills the human variables of the initial guess z (in place)."""
         z[self.p] = self.Model()
 
+    def Restore(self, z: np.ndarray) -> None:
+        """Makes the human variables of z consistent with its robot plan
+        before another SQP pass linearizes at z (in place). The fixed
+        predictions of React and CVMM are already."""
+
     def Predictions(self, z: np.ndarray) -> np.ndarray:
         return z[self.p].copy()
 

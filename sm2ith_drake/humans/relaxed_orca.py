@@ -15,6 +15,11 @@ speed disc and the static half-planes. Stationarity in ζ then gives
 λ_a = 2M_a ζ_a, λ_i = 2M_v ζ_v,i and μ = 0 exactly, and λ_s, λ_o follow from
 stationarity in a by non-negative least squares on the active set.
 
+relaxed_orca_actions solves many instances (one per human) at once: the same
+Newton on f, vectorized over the instances; the rare instances whose
+unconstrained minimizer leaves the speed disc or a static half-plane are
+finished by relaxed_orca_action.
+
 This is the oracle of the KKT embedding (humans/orca_kkt.py) and the warm
 start of its multipliers.
 """
@@ -25,6 +30,8 @@ import numpy as np
 from scipy.optimize import minimize, nnls
 
 _ACTIVE_TOL = 1e-7
+# Relative resolution of f: a smaller Armijo decrease is roundoff.
+_ROUNDOFF = 1e-14
 
 
 @dataclass
@@ -54,6 +61,67 @@ def _Reduced(a, v_pref, v_t, n, rho, r_acc_sq, Ma, Mv):
     if za > 0:
         Hm += 4 * Ma * (za * np.eye(2) + 2 * np.outer(e, e))
     return f, g, Hm
+
+
+def _Multipliers(a, v_pref, v_t, n, rho, no, rho_o, vmax_sq, r_acc_sq, Ma, Mv):
+    """λ_a, λ_i from the slacks; λ_s, λ_o by NNLS on stationarity in a over the
+    active set; and the stationarity residual."""
+    e = a - v_t
+    lam_a = 2 * Ma * max(0.0, e @ e - r_acc_sq)
+    lam_i = 2 * Mv * np.maximum(0.0, rho - n @ a)
+    # Stationarity in a: 2(a − v_pref) + 2λ_a e − Σλ_i n_i + 2λ_s a − Σλ_o n_o = 0.
+    r = 2 * (a - v_pref) + 2 * lam_a * e - n.T @ lam_i
+    cols, which = [], []
+    if a @ a >= vmax_sq - 1e-6:
+        cols.append(2 * a)
+        which.append(-1)
+    for o in range(len(rho_o)):
+        if no[o] @ a - rho_o[o] <= 1e-6:
+            cols.append(-no[o])
+            which.append(o)
+    lam_s, lam_o = 0.0, np.zeros(len(rho_o))
+    if cols:
+        sol, _ = nnls(np.column_stack(cols), -r)
+        for w, value in zip(which, sol, strict=True):
+            if w < 0:
+                lam_s = float(value)
+            else:
+                lam_o[w] = value
+    resid = r + 2 * lam_s * a - no.T @ lam_o
+    return lam_a, lam_i, lam_s, lam_o, float(np.linalg.norm(resid))
+
+
+def _PolishActiveSet(a, v_pref, v_t, n, rho, no, rho_o, vmax_sq, r_acc_sq, Ma, Mv):
+    """Newton on the KKT system of the constraints active at a (speed disc
+    ‖a‖² = a_max², static lines n_oᵀa = ρ_o), dropping a constraint whose
+    multiplier turns negative. Returns None if it does not settle."""
+    active = ([-1] if a @ a >= vmax_sq - 1e-6 else []) + [
+        o for o in range(len(rho_o)) if no[o] @ a - rho_o[o] <= 1e-6
+    ]
+    while 0 < len(active) <= 2:
+        x, lam = a.copy(), np.zeros(len(active))
+        for _ in range(20):
+            _, g, Hm = _Reduced(x, v_pref, v_t, n, rho, r_acc_sq, Ma, Mv)
+            # Constraints h_j(x) = 0 with h_s = ‖x‖² − a_max², h_o = ρ_o − n_oᵀx.
+            J = np.array([2 * x if w < 0 else -no[w] for w in active])
+            h = np.array(
+                [x @ x - vmax_sq if w < 0 else rho_o[w] - no[w] @ x for w in active]
+            )
+            for j, w in enumerate(active):
+                if w < 0:
+                    Hm = Hm + 2 * lam[j] * np.eye(2)
+            K = np.block([[Hm, J.T], [J, np.zeros((len(active), len(active)))]])
+            try:
+                sol = np.linalg.solve(K, -np.concatenate([g, h]))
+            except np.linalg.LinAlgError:
+                return None
+            x, lam = x + sol[:2], sol[2:]
+            if np.linalg.norm(sol[:2]) < 1e-15:
+                break
+        if np.all(lam >= -1e-12):
+            return x
+        del active[int(np.argmin(lam))]
+    return None
 
 
 def relaxed_orca_action(
@@ -108,9 +176,8 @@ def relaxed_orca_action(
         t = 1.0
         while t > 1e-8:
             trial = a + t * step
-            if _Reduced(trial, v_pref, v_t, n, rho, r_acc_sq, Ma, Mv)[
-                0
-            ] <= f + 1e-4 * t * (g @ step):
+            f_trial = _Reduced(trial, v_pref, v_t, n, rho, r_acc_sq, Ma, Mv)[0]
+            if f_trial <= f + 1e-4 * t * (g @ step) + _ROUNDOFF * (1 + abs(f)):
                 break
             t *= 0.5
         a = a + t * step
@@ -139,30 +206,26 @@ def relaxed_orca_action(
             options={"ftol": 1e-14, "maxiter": 200},
         )
         a = res.x
+        # SLSQP stops with a stationarity residual up to ~1e-5 when the
+        # multipliers are large; polish on its active set, keeping the better.
+        polished = _PolishActiveSet(
+            a, v_pref, v_t, n, rho, no, rho_o, vmax_sq, r_acc_sq, Ma, Mv
+        )
+        if polished is not None and feasible(polished):
+            old = _Multipliers(
+                a, v_pref, v_t, n, rho, no, rho_o, vmax_sq, r_acc_sq, Ma, Mv
+            )
+            new = _Multipliers(
+                polished, v_pref, v_t, n, rho, no, rho_o, vmax_sq, r_acc_sq, Ma, Mv
+            )
+            if new[-1] < old[-1]:
+                a = polished
     e = a - v_t
     za = max(0.0, e @ e - r_acc_sq)
     zv = np.maximum(0.0, rho - n @ a)
-    lam_a = 2 * Ma * za
-    lam_i = 2 * Mv * zv
-    # Stationarity in a: 2(a − v_pref) + 2λ_a e − Σλ_i n_i + 2λ_s a − Σλ_o n_o = 0.
-    r = 2 * (a - v_pref) + 2 * lam_a * e - n.T @ lam_i
-    cols, which = [], []
-    if a @ a >= vmax_sq - 1e-6:
-        cols.append(2 * a)
-        which.append(-1)
-    for o in range(len(rho_o)):
-        if no[o] @ a - rho_o[o] <= 1e-6:
-            cols.append(-no[o])
-            which.append(o)
-    lam_s, lam_o = 0.0, np.zeros(len(rho_o))
-    if cols:
-        sol, _ = nnls(np.column_stack(cols), -r)
-        for w, value in zip(which, sol, strict=True):
-            if w < 0:
-                lam_s = float(value)
-            else:
-                lam_o[w] = value
-    resid = r + 2 * lam_s * a - no.T @ lam_o
+    lam_a, lam_i, lam_s, lam_o, resid = _Multipliers(
+        a, v_pref, v_t, n, rho, no, rho_o, vmax_sq, r_acc_sq, Ma, Mv
+    )
     f = _Reduced(a, v_pref, v_t, n, rho, r_acc_sq, Ma, Mv)[0]
     return RelaxedOrcaSolution(
         velocity=a,
@@ -175,5 +238,167 @@ def relaxed_orca_action(
         multiplier_slack_acceleration=0.0,
         multipliers_slack_velocity=np.zeros(len(rho)),
         cost=float(f),
-        stationarity_residual=float(np.linalg.norm(resid)),
+        stationarity_residual=resid,
     )
+
+
+@dataclass
+class RelaxedOrcaBatch:
+    """relaxed_orca_action's solutions of B independent instances, one a row
+    (μ = 0 exactly, so it is left out)."""
+
+    velocity: np.ndarray  # a (B, 2)
+    slack_acceleration: np.ndarray  # ζ_a (B,)
+    slack_velocity: np.ndarray  # ζ_v (B, A)
+    multiplier_speed: np.ndarray  # λ_s (B,)
+    multiplier_acceleration: np.ndarray  # λ_a (B,)
+    multipliers_agents: np.ndarray  # λ_i (B, A)
+    multipliers_static: np.ndarray  # λ_o (B, S)
+    cost: np.ndarray  # (B,)
+    stationarity_residual: np.ndarray  # (B,)
+
+
+def relaxed_orca_actions(
+    v_pref,
+    v_current,
+    normals,
+    offsets,
+    *,
+    max_speed,
+    max_accel,
+    time_step,
+    slack_weights,
+    static_normals=None,
+    static_offsets=None,
+) -> RelaxedOrcaBatch:
+    """Solves B independent relaxed-ORCA QPs (one per human) at once.
+
+    The same damped Newton as relaxed_orca_action on the unconstrained reduced
+    problem f(a), vectorized over the rows (2×2 solves in closed form, batched
+    Armijo backtracking). The rare rows whose unconstrained minimizer leaves the
+    speed disc or a static half-plane are handed to relaxed_orca_action, so
+    they are exact too. Elsewhere λ_s = λ_o = 0 and the stationarity residual
+    is ‖∇f(a)‖.
+
+    Args:
+        v_pref: preferred velocities (B, 2).
+        v_current: current velocities v_t (B, 2).
+        normals, offsets: agent half-planes n_iᵀa ≥ ρ_i, (B, A, 2) and (B, A).
+        max_speed, max_accel, time_step: a_max, acc_max, Δt.
+        slack_weights: (M_a, M_v).
+        static_normals, static_offsets: static half-planes (B, S, 2), (B, S).
+    """
+    v_pref = np.asarray(v_pref, dtype=float).reshape(-1, 2)
+    v_t = np.asarray(v_current, dtype=float).reshape(-1, 2)
+    B = len(v_pref)
+    rho = np.asarray(offsets, dtype=float)
+    A = rho.shape[-1] if rho.ndim == 2 else 0
+    rho = rho.reshape(B, A)
+    n = np.asarray(normals, dtype=float).reshape(B, A, 2)
+    if static_offsets is None:
+        no, rho_o = np.zeros((B, 0, 2)), np.zeros((B, 0))
+    else:
+        rho_o = np.asarray(static_offsets, dtype=float)
+        S = rho_o.shape[-1] if rho_o.ndim == 2 else 0
+        rho_o = rho_o.reshape(B, S)
+        no = np.asarray(static_normals, dtype=float).reshape(B, S, 2)
+    Ma, Mv = (float(w) for w in slack_weights)
+    r_acc_sq = (time_step * max_accel) ** 2
+    # Σ over active lines of n_i n_iᵀ as one matmul: columns [n_x², n_x n_y, n_y²].
+    nn = np.stack([n[..., 0] ** 2, n[..., 0] * n[..., 1], n[..., 1] ** 2], axis=-1)
+
+    def slacks(a):
+        e = a - v_t
+        za = np.maximum(0.0, np.einsum("bk,bk->b", e, e) - r_acc_sq)
+        zv = np.maximum(0.0, rho - np.einsum("bak,bk->ba", n, a))
+        return e, za, zv
+
+    def cost(a, za, zv):
+        d = a - v_pref
+        return (
+            np.einsum("bk,bk->b", d, d)
+            + Ma * za**2
+            + Mv * np.einsum("ba,ba->b", zv, zv)
+        )
+
+    def gradient(a, e, za, zv):
+        return (
+            2 * (a - v_pref)
+            + (4 * Ma * za)[:, None] * e
+            - 2 * Mv * np.einsum("ba,bak->bk", zv, n)
+        )
+
+    # Damped Newton on f (see _Reduced), all rows at once; a converged row's
+    # step is zeroed so it stays put while the others finish.
+    a = v_pref.copy()
+    done = np.zeros(B, dtype=bool)
+    for _ in range(50):
+        e, za, zv = slacks(a)
+        f = cost(a, za, zv)
+        g = gradient(a, e, za, zv)
+        hs = 2 * Mv * np.einsum("ba,bak->bk", (zv > 0).astype(float), nn)
+        ca = 8 * Ma * (za > 0)
+        h11 = 2 + hs[:, 0] + 4 * Ma * za + ca * e[:, 0] ** 2
+        h12 = hs[:, 1] + ca * e[:, 0] * e[:, 1]
+        h22 = 2 + hs[:, 2] + 4 * Ma * za + ca * e[:, 1] ** 2
+        scale = np.where(done, 0.0, -1.0 / (h11 * h22 - h12**2))
+        step = np.column_stack(
+            [h22 * g[:, 0] - h12 * g[:, 1], h11 * g[:, 1] - h12 * g[:, 0]]
+        )
+        step *= scale[:, None]
+        # Armijo backtracking (a converged row's zero step always passes).
+        t = np.ones(B)
+        slope = 1e-4 * np.einsum("bk,bk->b", g, step)
+        allowance = _ROUNDOFF * (1 + np.abs(f))
+        while True:
+            trial = a + t[:, None] * step
+            _, za_t, zv_t = slacks(trial)
+            fail = cost(trial, za_t, zv_t) > f + t * slope + allowance
+            fail &= t > 1e-8
+            if not fail.any():
+                break
+            t[fail] *= 0.5
+        step *= t[:, None]
+        a = a + step
+        done |= np.einsum("bk,bk->b", step, step) < 1e-26
+        if done.all():
+            break
+    e, za, zv = slacks(a)
+    result = RelaxedOrcaBatch(
+        velocity=a,
+        slack_acceleration=za,
+        slack_velocity=zv,
+        multiplier_speed=np.zeros(B),
+        multiplier_acceleration=2 * Ma * za,
+        multipliers_agents=2 * Mv * zv,
+        multipliers_static=np.zeros(rho_o.shape),
+        cost=cost(a, za, zv),
+        # Stationarity in a with λ_s = λ_o = 0 is ∇f(a) = 0.
+        stationarity_residual=np.linalg.norm(gradient(a, e, za, zv), axis=1),
+    )
+    # The same feasibility test as relaxed_orca_action's.
+    constrained = np.einsum("bk,bk->b", a, a) > max_speed**2 + 1e-12
+    constrained |= np.any(np.einsum("bsk,bk->bs", no, a) < rho_o - 1e-10, axis=1)
+    for b in np.flatnonzero(constrained):
+        sol = relaxed_orca_action(
+            v_pref[b],
+            v_t[b],
+            n[b],
+            rho[b],
+            max_speed=max_speed,
+            max_accel=max_accel,
+            time_step=time_step,
+            slack_weights=slack_weights,
+            static_normals=no[b],
+            static_offsets=rho_o[b],
+        )
+        result.velocity[b] = sol.velocity
+        result.slack_acceleration[b] = sol.slack_acceleration
+        result.slack_velocity[b] = sol.slack_velocity
+        result.multiplier_speed[b] = sol.multiplier_speed
+        result.multiplier_acceleration[b] = sol.multiplier_acceleration
+        result.multipliers_agents[b] = sol.multipliers_agents
+        result.multipliers_static[b] = sol.multipliers_static
+        result.cost[b] = sol.cost
+        result.stationarity_residual[b] = sol.stationarity_residual
+    return result
