@@ -6,7 +6,7 @@ import pytest
 from scipy.optimize import minimize
 
 from sm2ith_drake.control.controller import MpcController
-from sm2ith_drake.humans.orca_kkt import orca_agent_half_planes
+from sm2ith_drake.humans.orca_kkt import NearestBodies, orca_agent_half_planes
 from sm2ith_drake.humans.predictors import HumanEstimate
 from sm2ith_drake.humans.relaxed_orca import (
     relaxed_orca_action,
@@ -405,3 +405,40 @@ def test_batched_relaxed_orca_shapes():
     del batch["static_normals"], batch["static_offsets"]
     sol = relaxed_orca_actions(**batch, **args)
     assert sol.multipliers_static.shape == (4, 0)
+
+
+@pytest.mark.parametrize("robot_name", ["ridgeback_ur10", "stretch3"])
+def test_nearest_body_point_derivatives_match_finite_differences(robot_name):
+    """The robot as the people see it: the closest point on the nearest
+    capsule's axis, differentiated w.r.t. the configuration and the person's
+    position (inside the segment, at its clipped ends, on a point-like
+    vertical capsule), against central differences."""
+    robot, c = _KktController(robot_name, 1)
+    pred = c.predictor
+    rng = np.random.default_rng(5)
+    h = 1e-6
+    kinds = set()
+    for _ in range(40):
+        q = robot.default_q + rng.normal(scale=0.3, size=robot.num_positions)
+        P = q[:2] + rng.uniform(-1.5, 1.5, 2)
+        view = pred.RobotView(q[None], np.zeros((1, robot.num_velocities)))
+        body = NearestBodies(view, P[None, None])
+        fd_q = np.zeros((2, robot.num_positions))
+        for i in range(robot.num_positions):
+            qp, qm = q.copy(), q.copy()
+            qp[i] += h
+            qm[i] -= h
+            up = NearestBodies(pred.RobotView(qp[None], view.nu), P[None, None])
+            um = NearestBodies(pred.RobotView(qm[None], view.nu), P[None, None])
+            fd_q[:, i] = (up.point - um.point)[0, 0] / (2 * h)
+        fd_p = np.zeros((2, 2))
+        for i in range(2):
+            dp = np.zeros(2)
+            dp[i] = h
+            up = NearestBodies(view, (P + dp)[None, None])
+            um = NearestBodies(view, (P - dp)[None, None])
+            fd_p[:, i] = (up.point - um.point)[0, 0] / (2 * h)
+        np.testing.assert_allclose(body.d_dq[0, 0], fd_q, atol=1e-6)
+        np.testing.assert_allclose(body.d_dp[0, 0], fd_p, atol=1e-6)
+        kinds.add("inside" if np.any(np.abs(fd_p) > 1e-3) else "end")
+    assert kinds == {"inside", "end"}

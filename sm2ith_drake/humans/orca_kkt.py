@@ -49,6 +49,8 @@ states are taken by central differences of the vectorized ORCA agent lines
 of humans/orca.py, the same geometry the reference uses (piecewise smooth).
 """
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from sm2ith_drake.control.program import ConstraintGroup, _BlockPattern
@@ -113,6 +115,93 @@ def obstacle_half_planes(position, segments, radius, *, tau_obs):
     return n, -(dist - radius) / tau_obs
 
 
+@dataclass
+class RobotView:
+    """The robot at T steps as the people's ORCA sees it."""
+
+    q: np.ndarray  # (T, n)
+    nu: np.ndarray  # (T, m)
+    p: np.ndarray  # (T, 2) base position
+    v: np.ndarray  # (T, 2) base velocity in the world
+    ends: np.ndarray  # (T, C, 2, 2) capsule axis end points on the floor
+    ends_jacobian: np.ndarray  # (T, C, 2, 2, n) their Jacobians w.r.t. q
+    radii: np.ndarray  # (C,)
+
+    def Step(self, k: int) -> "RobotView":
+        """The view of step k alone (T = 1)."""
+        sl = slice(k, k + 1)
+        return RobotView(
+            self.q[sl],
+            self.nu[sl],
+            self.p[sl],
+            self.v[sl],
+            self.ends[sl],
+            self.ends_jacobian[sl],
+            self.radii,
+        )
+
+
+@dataclass
+class NearestBody:
+    """Per (step, person): the closest point on the axis of the robot capsule
+    nearest to the person (surface distance), its radius, and the point's
+    derivatives w.r.t. the configuration and the person's position."""
+
+    point: np.ndarray  # (T, H, 2)
+    radius: np.ndarray  # (T, H)
+    d_dq: np.ndarray  # (T, H, 2, n)
+    d_dp: np.ndarray  # (T, H, 2, 2)
+
+
+def NearestBodies(robot: RobotView, positions) -> NearestBody:
+    """The nearest robot body of every person (as humans/crowd.py's
+    _NearestBody) with the derivatives of its closest point: for
+    c = A + s(B − A), s = clip((P − A)·d / d·d) with d = B − A, the clipped
+    ends move with A or B, and inside ∂s follows from the quotient rule."""
+    P = np.asarray(positions, dtype=float)  # (T, H, 2)
+    A = robot.ends[:, None, :, 0]  # (T, 1, C, 2)
+    B = robot.ends[:, None, :, 1]
+    d = B - A
+    dd = np.sum(d * d, axis=-1)  # (T, 1, C)
+    w = P[:, :, None] - A  # (T, H, C, 2)
+    short = dd < 1e-9  # a vertical capsule is a point on the floor
+    s_raw = np.sum(w * d, axis=-1) / np.where(short, 1.0, dd)
+    s = np.where(short, 0.0, np.clip(s_raw, 0.0, 1.0))
+    closest = A + s[..., None] * d  # (T, H, C, 2)
+    gap = np.linalg.norm(P[:, :, None] - closest, axis=-1) - robot.radii
+    i = np.argmin(gap, axis=-1)  # (T, H)
+    T, H = P.shape[:2]
+    t_idx, h_idx = np.meshgrid(np.arange(T), np.arange(H), indexing="ij")
+    s_i = s[t_idx, h_idx, i]
+    d_i = d[t_idx, 0, i]  # (T, H, 2)
+    w_i = w[t_idx, h_idx, i]
+    dd_i = dd[t_idx, 0, i]
+    JA = robot.ends_jacobian[t_idx, i, 0]  # (T, H, 2, n)
+    JB = robot.ends_jacobian[t_idx, i, 1]
+    Jd = JB - JA
+    d_dq = (1 - s_i)[..., None, None] * JA + s_i[..., None, None] * JB
+    d_dp = np.zeros((T, H, 2, 2))
+    inside = (s_i > 0) & (s_i < 1) & ~short[t_idx, 0, i]
+    if np.any(inside):
+        inv = 1.0 / np.where(inside, dd_i, 1.0)
+        # ∂s/∂q = [d·(−J_A) + w·J_d − 2s d·J_d] / d·d;  ∂s/∂P = dᵀ / d·d.
+        ds_dq = (
+            -np.einsum("thi,thin->thn", d_i, JA)
+            + np.einsum("thi,thin->thn", w_i, Jd)
+            - 2 * s_i[..., None] * np.einsum("thi,thin->thn", d_i, Jd)
+        ) * inv[..., None]
+        ds_dq[~inside] = 0.0
+        d_dq += d_i[..., :, None] * ds_dq[..., None, :]
+        outer = d_i[..., :, None] * d_i[..., None, :] * inv[..., None, None]
+        d_dp = np.where(inside[..., None, None], outer, 0.0)
+    return NearestBody(
+        point=closest[t_idx, h_idx, i],
+        radius=robot.radii[i],
+        d_dq=d_dq,
+        d_dp=d_dp,
+    )
+
+
 class OrcaKkt(Predictor):
     """The KKT embedding of every human's relaxed-ORCA QP (module doc)."""
 
@@ -128,9 +217,10 @@ class OrcaKkt(Predictor):
         self.human_radius = float(human_radius)
         self.robot_radius = robot.model.base_radius
         H = self.H
-        # Human neighbours per human (RVO2's maxNeighbors), then the robot.
+        # Human neighbours per human (RVO2's maxNeighbors), then the robot's
+        # base and its body nearest to the person.
         self.K = max(0, min(int(config.max_neighbors), H - 1))
-        self.A = self.K + 1  # agent lines per human
+        self.A = self.K + 2  # agent lines per human
         self.S = len(self.segments)
         self.R = 2 + self.A + self.S  # constraints (multipliers) per human
         self.v_pref = np.zeros((H, 2))
@@ -138,10 +228,11 @@ class OrcaKkt(Predictor):
         self.neighbors = np.array(
             [[i for i in range(H) if i != j][: self.K] for j in range(H)], dtype=int
         ).reshape(H, self.K)
+        # Combined radii (the nearest body's is set per person and step).
         self._radius = np.full(self.A, 2 * self.human_radius)
-        self._radius[-1] = self.human_radius + self.robot_radius
+        self._radius[self.K] = self.human_radius + self.robot_radius
         self._share = np.full(self.A, 0.5)
-        self._share[-1] = config.robot_share
+        self._share[self.K :] = config.robot_share
         self._blocks = None
 
     @property
@@ -214,35 +305,58 @@ class OrcaKkt(Predictor):
         a = z[self.a]
         return np.concatenate([self.v0[None], a[:-1]], axis=0)
 
-    def _RobotStates(self, z, layout):
-        """Robot base position and world velocity at k = 0 … N−1."""
-        q = z[layout.q[:-1]]
-        nu = z[layout.nu[:-1]]
-        vel = np.stack([self.robot.G(q[k]) @ nu[k] for k in range(self.N)])[:, :2]
-        return q[:, :2], vel
-
-    def _AgentStates(self, positions, velocities, robot_p, robot_v):
-        """Each line's own and other agent's states, (K, H, A, 2) each:
-        own p, own v, other p, other v (the robot is the last line)."""
-        T, H, A = positions.shape[0], self.H, self.A
-        shape = (T, H, A, 2)
-        robot_p = np.broadcast_to(robot_p[:, None, None], (T, H, 1, 2))
-        robot_v = np.broadcast_to(robot_v[:, None, None], (T, H, 1, 2))
-        nb = self.neighbors
-        return (
-            np.broadcast_to(positions[:, :, None], shape),
-            np.broadcast_to(velocities[:, :, None], shape),
-            np.concatenate([positions[:, nb], robot_p], axis=2),
-            np.concatenate([velocities[:, nb], robot_v], axis=2),
+    def RobotView(self, q, nu) -> "RobotView":
+        """The robot as the people see it at the configurations q (T, n) and
+        velocities ν (T, m): its base, and its bodies for the nearest-body
+        agent (see _AgentStates)."""
+        robot = self.robot
+        G = np.stack([robot.G(qk) for qk in q])  # (T, n, m)
+        kin = robot.CalcKinematics(q)
+        return RobotView(
+            q=q,
+            nu=nu,
+            p=q[:, :2],
+            v=np.einsum("knm,km->kn", G[:, :2], nu),
+            ends=kin.capsule_points[..., :2],
+            ends_jacobian=kin.capsule_jacobians[..., :2, :],
+            radii=robot.capsule_radii,
         )
 
-    def _AgentLines(self, own_p, own_v, other_p, other_v):
+    def _RobotView(self, z, layout):
+        return self.RobotView(z[layout.q[:-1]], z[layout.nu[:-1]])
+
+    def _AgentStates(self, positions, velocities, robot):
+        """Each line's own and other agent's states, (T, H, A, 2) each (own
+        p, own v, other p, other v), the combined radii (T, H, A) and the
+        nearest robot bodies. The lines are the K neighbours', the robot
+        base's, and the robot's nearest body's: as the simulated people see
+        the robot (humans/crowd.py), the closest point on the axis of the
+        capsule nearest to the person, moving with the base, so an arm
+        sticking out is avoided too."""
+        T, H, A = positions.shape[0], self.H, self.A
+        shape = (T, H, A, 2)
+        body = NearestBodies(robot, positions)
+        robot_p = np.broadcast_to(robot.p[:, None, None], (T, H, 1, 2))
+        robot_v = np.broadcast_to(robot.v[:, None, None], (T, H, 2, 2))
+        nb = self.neighbors
+        radius = np.empty((T, H, A))
+        radius[:] = self._radius
+        radius[..., -1] = self.human_radius + body.radius
+        states = (
+            np.broadcast_to(positions[:, :, None], shape),
+            np.broadcast_to(velocities[:, :, None], shape),
+            np.concatenate([positions[:, nb], robot_p, body.point[:, :, None]], axis=2),
+            np.concatenate([velocities[:, nb], robot_v], axis=2),
+        )
+        return states, radius, body
+
+    def _AgentLines(self, own_p, own_v, other_p, other_v, radius):
         return orca_agent_half_planes(
             own_p,
             own_v,
             other_p,
             other_v,
-            self._radius,
+            radius,
             self._share,
             tau=self.config.tau,
             time_step=self.dt,
@@ -256,32 +370,34 @@ class OrcaKkt(Predictor):
         T, H = positions.shape[:2]
         return np.zeros((T, H, 0, 2)), np.zeros((T, H, 0))
 
-    def HalfPlanes(self, positions, velocities, robot_p, robot_v):
+    def HalfPlanes(self, positions, velocities, robot):
         """Agent lines (n (T, H, A, 2), ρ (T, H, A)) and static lines
-        (n (T, H, S, 2), ρ (T, H, S)) for states of shape (T, H, 2)."""
-        n, rho = self._AgentLines(
-            *self._AgentStates(positions, velocities, robot_p, robot_v)
-        )
+        (n (T, H, S, 2), ρ (T, H, S)) for human states of shape (T, H, 2)
+        and the RobotView of the same T steps."""
+        states, radius, _ = self._AgentStates(positions, velocities, robot)
+        n, rho = self._AgentLines(*states, radius)
         return (n, rho) + self._StaticLines(positions)
 
     def LocalState(self, z, layout):
         """The states the k-th QPs depend on, k = 0 … N−1: human positions
-        and velocities (N, H, 2), robot base position and velocity (N, 2)."""
+        and velocities (N, H, 2) and the RobotView."""
         p = z[self.p[:-1]]
         v = self._HumanVelocities(z)
-        rp, rv = self._RobotStates(z, layout)
-        return p, v, rp, rv
+        return p, v, self._RobotView(z, layout)
 
-    def HalfPlaneDerivatives(self, p, v, rp, rv, h=1e-6):
+    def HalfPlaneDerivatives(self, p, v, robot, h=1e-6):
         """Half-planes and their central-difference derivatives.
 
         Each agent line depends on its own human's state and on one other
         agent's, so all lines are differenced at once in those 8 inputs:
         dn (T, H, A, 2, 8), dρ (T, H, A, 8), in the order own p, own v,
-        other p, other v. Static lines depend on the own position only:
-        dn_o (T, H, S, 2, 2), dρ_o (T, H, S, 2)."""
-        states = self._AgentStates(p, v, rp, rv)
-        n, rho = self._AgentLines(*states)
+        other p, other v (the nearest body's point is an input here; its
+        own dependence on the configuration and the person's position is
+        applied by the chain rule in _KktBlocks). Static lines depend on the
+        own position only: dn_o (T, H, S, 2, 2), dρ_o (T, H, S, 2). Also
+        returns the NearestBodies."""
+        states, radius, body = self._AgentStates(p, v, robot)
+        n, rho = self._AgentLines(*states, radius)
         no, rho_o = self._StaticLines(p)
         T, H, A, S = p.shape[0], self.H, self.A, self.S
         dn = np.zeros((T, H, A, 2, 8))
@@ -293,7 +409,7 @@ class OrcaKkt(Predictor):
                     args = list(states)
                     args[which] = args[which].copy()
                     args[which][..., c] += sign * h
-                    pm.append(self._AgentLines(*args))
+                    pm.append(self._AgentLines(*args, radius))
                 dn[..., 2 * which + c] = (pm[0][0] - pm[1][0]) / (2 * h)
                 drho[..., 2 * which + c] = (pm[0][1] - pm[1][1]) / (2 * h)
         dno = np.zeros((T, H, S, 2, 2))
@@ -307,14 +423,14 @@ class OrcaKkt(Predictor):
                     pm.append(self._StaticLines(q))
                 dno[..., c] = (pm[0][0] - pm[1][0]) / (2 * h)
                 drho_o[..., c] = (pm[0][1] - pm[1][1]) / (2 * h)
-        return (n, rho, no, rho_o), (dn, drho, dno, drho_o)
+        return (n, rho, no, rho_o), (dn, drho, dno, drho_o), body
 
     def Residuals(self, z, layout):
         """KKT residuals at z (for diagnostics and tests): stationarity (N,
         H, 2), primal c (N, H, R) and complementarity λ·c (N, H, R), with the
         slacks eliminated (ζ = λ/2M, module doc)."""
-        p, v, rp, rv = self.LocalState(z, layout)
-        n, rho, no, rho_o = self.HalfPlanes(p, v, rp, rv)
+        p, v, robot = self.LocalState(z, layout)
+        n, rho, no, rho_o = self.HalfPlanes(p, v, robot)
         return _KktTerms(self, z, v, n, rho, no, rho_o)
 
     def WarmStart(self, z, previous=None, shift=1):
@@ -354,14 +470,12 @@ class OrcaKkt(Predictor):
     def ForwardSimulate(self, z, layout):
         """Rolls the humans forward with the standalone relaxed-ORCA QP
         (humans/relaxed_orca.py), the robot fixed at z's plan; fills a, p, λ."""
-        rp_all, rv_all = self._RobotStates(z, layout)
+        robot = self._RobotView(z, layout)
         v = self.v0.copy()
         active = np.nonzero(self.active)[0]
         for k in range(self.N):
             p = z[self.p[k]]
-            n, rho, no, rho_o = self.HalfPlanes(
-                p[None], v[None], rp_all[k : k + 1], rv_all[k : k + 1]
-            )
+            n, rho, no, rho_o = self.HalfPlanes(p[None], v[None], robot.Step(k))
             a = np.zeros((self.H, 2))
             lam = np.zeros((self.H, self.R))
             sol = self.SolveHumanQps(
@@ -422,20 +536,23 @@ class _KktBlocks:
     and the derivatives at a point (computed once per point).
 
     Local columns of block (k, j): a (2), λ (R), then the state: own p (2),
-    own v (2), each human neighbour's p and v (4 each), the robot base's
-    (x, y, θ) and base velocities ν_base (nb). A column whose value is a
-    constant of the step (v_0 of every human) maps to −1 and is dropped."""
+    own v (2), each human neighbour's p and v (4 each), the robot's
+    configuration q_k (n: the base through the base line, every joint
+    through the nearest-body line) and base velocities ν_base (nb). A column
+    whose value is a constant of the step (v_0 of every human) maps to −1
+    and is dropped."""
 
     def __init__(self, pred, layout):
         self.pred = pred
         self.layout = layout
         self.R = pred.R
+        self.n = pred.robot.num_positions
         self.nb = 3 if pred.robot.base_kind == "holonomic" else 2
         self.ilam = 2
         self.io = 2 + self.R  # own p, then own v
         self.inb = self.io + 4  # neighbour i: inb + 4i … inb + 4i + 3
         self.iq = self.inb + 4 * pred.K
-        self.inu = self.iq + 3
+        self.inu = self.iq + self.n
         self.width = self.inu + self.nb
         self.groups = []
         self._cache = {"key": None}
@@ -455,7 +572,7 @@ class _KktBlocks:
             c0 = self.inb + 4 * i
             C[:, :, c0 : c0 + 2] = pred.p[:-1][:, other]
             C[1:, :, c0 + 2 : c0 + 4] = pred.a[:-1][:, other]
-        C[:, :, self.iq : self.iq + 3] = np.asarray(layout.q)[:-1, None, :3]
+        C[:, :, self.iq : self.inu] = np.asarray(layout.q)[:-1, None, :]
         C[:, :, self.inu :] = np.asarray(layout.nu)[:-1, None, : self.nb]
         return C
 
@@ -483,17 +600,27 @@ class _KktBlocks:
         """Adds the derivatives of local rows w.r.t. the state to J.
 
         dX_own (N, H, r, 4): w.r.t. the own (p, v); dX_other (N, H, r, A, 4):
-        through line i w.r.t. its other agent's (p, v), the robot last (its
-        velocity is mapped through G(q)ν to (θ, ν_base))."""
+        through line i w.r.t. its other agent's (p, v). The robot's lines are
+        the last two: the base's position is (x, y) of q and the nearest
+        body's point moves with q and with the person's position
+        (NearestBodies); both move with the base's world velocity G(q)ν,
+        which depends on θ and ν_base."""
         pred, K = self.pred, self.pred.K
         J[:, :, rows, self.io : self.io + 4] += dX_own
         J[:, :, rows, self.inb : self.iq] += dX_other[..., :K, :].reshape(
             dX_other.shape[:3] + (4 * K,)
         )
-        robot = dX_other[..., K, :]  # (N, H, r, 4)
-        J[:, :, rows, self.iq : self.iq + 2] += robot[..., 0:2]
-        drv = robot[..., 2:4]  # w.r.t. the base's world velocity
-        q, nu = e["q"], e["nu"]
+        base, body = dX_other[..., K, :], dX_other[..., K + 1, :]  # (N,H,r,4)
+        nearest = e["body"]
+        J[:, :, rows, self.iq : self.iq + 2] += base[..., 0:2]
+        J[:, :, rows, self.iq : self.inu] += np.einsum(
+            "khri,khin->khrn", body[..., 0:2], nearest.d_dq
+        )
+        J[:, :, rows, self.io : self.io + 2] += np.einsum(
+            "khri,khij->khrj", body[..., 0:2], nearest.d_dp
+        )
+        drv = base[..., 2:4] + body[..., 2:4]  # w.r.t. the base's velocity
+        q, nu = e["robot"].q, e["robot"].nu
         for k in range(pred.N):
             G = pred.robot.G(q[k])[:2, : self.nb]
             dth = pred.robot.dGnu_dq(q[k], nu[k])[:2, 2]
@@ -506,9 +633,9 @@ class _KktBlocks:
             return self._cache
         pred, layout = self.pred, self.layout
         z = point.z
-        p, v, rp, rv = pred.LocalState(z, layout)
-        (n, rho, no, rho_o), (dn, drho, dno, drho_o) = pred.HalfPlaneDerivatives(
-            p, v, rp, rv
+        p, v, robot = pred.LocalState(z, layout)
+        (n, rho, no, rho_o), (dn, drho, dno, drho_o), body = pred.HalfPlaneDerivatives(
+            p, v, robot
         )
         stat, c, lc = _KktTerms(pred, z, v, n, rho, no, rho_o)
         self._cache = dict(
@@ -525,8 +652,8 @@ class _KktBlocks:
             stat=stat,
             c=c,
             lc=lc,
-            q=z[layout.q[:-1]],
-            nu=z[layout.nu[:-1]],
+            robot=robot,
+            body=body,
         )
         return self._cache
 
@@ -617,7 +744,10 @@ class _KktInequalities(ConstraintGroup):
             primal[r, b.io : b.io + 4] = True
             if i < K:
                 primal[r, b.inb + 4 * i : b.inb + 4 * i + 4] = True
-            else:
+            elif i == K:  # the robot base: (x, y, θ), ν_base
+                primal[r, b.iq : b.iq + 3] = True
+                primal[r, b.inu :] = True
+            else:  # the nearest body: all of q, ν_base
                 primal[r, b.iq :] = True
         primal[2 + A :, own_p] = True  # static lines: own position only
         self.mask = np.concatenate([primal, primal], axis=0)
@@ -677,8 +807,8 @@ def PredictionConsistency(predictor, z, layout) -> np.ndarray:
     relaxed-ORCA QP at the predicted states of plan z and return
     ‖a_QP − a_predicted‖ for every (k, j) (m/s), shape (N, active)."""
 
-    p, v, rp, rv = predictor.LocalState(z, layout)
-    n, rho, no, rho_o = predictor.HalfPlanes(p, v, rp, rv)
+    p, v, robot = predictor.LocalState(z, layout)
+    n, rho, no, rho_o = predictor.HalfPlanes(p, v, robot)
     a = z[predictor.a]
     active = np.nonzero(predictor.active)[0]
     N, B = predictor.N, len(active)
