@@ -114,9 +114,13 @@ def BenchmarkScenario(
     predictor: str,
     solver: str = "rti",
     rti_iterations: int | None = None,
+    scenario_text: str = "",
 ):
+    """The benchmark scenario: the robot's reach task with ``humans``
+    scripted people pacing across its way; ``scenario_text`` (YAML) is
+    applied on top, e.g. "{prediction: {max_neighbors: 9}}"."""
     from sm2ith_drake.resources import GetDiagramsDir
-    from sm2ith_drake.scenario import HumanConfig
+    from sm2ith_drake.scenario import ApplyScenarioText, HumanConfig, ScenarioError
 
     if humans < 0:
         raise UserError("--humans must be ≥ 0")
@@ -148,7 +152,10 @@ def BenchmarkScenario(
         if rti_iterations < 1:
             raise UserError("--rti_iterations must be ≥ 1")
         scenario.controller.rti_iterations = rti_iterations
-    return scenario
+    try:
+        return ApplyScenarioText(scenario, scenario_text)
+    except ScenarioError as e:
+        raise UserError(f"--scenario_text: {e}") from e
 
 
 def RunBenchmark(
@@ -159,12 +166,15 @@ def RunBenchmark(
     steps: int = 100,
     solver: str = "rti",
     rti_iterations: int | None = None,
+    scenario_text: str = "",
 ) -> dict:
     """Runs the benchmark closed loop; returns the per-step timing figures."""
     from sm2ith_drake.diagrams import RunSimulation
     from sm2ith_drake.scenario import ControlPeriod
 
-    scenario = BenchmarkScenario(robot, humans, predictor, solver, rti_iterations)
+    scenario = BenchmarkScenario(
+        robot, humans, predictor, solver, rti_iterations, scenario_text
+    )
     # The logger sees a step at its next sample: run a little past step K
     # and keep the first K.
     duration = (steps + 0.5) * ControlPeriod(scenario.controller)
@@ -178,6 +188,8 @@ def RunBenchmark(
         "predictor": predictor if humans else "none",
         "solver": solver,
         "rti_iterations": scenario.controller.rti_iterations,
+        "max_neighbors": scenario.prediction.max_neighbors,
+        "scenario_text": scenario_text,
         "steps": len(records),
         "median_ms": float(np.median(wall)),
         "p95_ms": float(np.percentile(wall, 95)),
@@ -206,6 +218,7 @@ def _Bench(args) -> int:
             steps=args.steps,
             solver=args.solver,
             rti_iterations=args.rti_iterations,
+            scenario_text=args.scenario_text,
         )
         results.append(r)
         iters = r["mean_iterations"]
@@ -288,6 +301,12 @@ def MakeParser() -> argparse.ArgumentParser:
         type=int,
         default=None,
         help="SQP passes per step (default: 1; 2 with orca_kkt)",
+    )
+    bench.add_argument(
+        "--scenario_text",
+        default="",
+        help="YAML applied on top of the benchmark scenario, e.g. "
+        "'{prediction: {max_neighbors: 9}}'",
     )
     bench.add_argument("--json", default=None, help="write the figures as JSON")
     bench.set_defaults(func=_Bench)

@@ -442,3 +442,33 @@ def test_nearest_body_point_derivatives_match_finite_differences(robot_name):
         np.testing.assert_allclose(body.d_dp[0, 0], fd_p, atol=1e-6)
         kinds.add("inside" if np.any(np.abs(fd_p) > 1e-3) else "end")
     assert kinds == {"inside", "end"}
+
+
+def test_program_grows_linearly_with_the_number_of_people():
+    """With a neighbour cap the SM²ITH program's variables, rows and KKT
+    Jacobian nonzeros grow by the same amount for every person added, and
+    (block-Jacobi, the default) each person's KKT rows touch only its own
+    variables and the robot's."""
+    sizes = []
+    for H in range(4, 9):
+        _, c = _KktController("ridgeback_ur10", H, max_neighbors=2)
+        program = c.program
+        groups = program.ConstraintGroups()
+        sizes.append(
+            (
+                program.layout.num_variables,
+                sum(g.num_rows for g, _, _ in groups),
+                sum(g.rows.size for g, _, _ in groups),
+            )
+        )
+    steps = np.diff(np.array(sizes), axis=0)
+    assert np.all(steps == steps[0]), sizes
+    pred = c.predictor
+    owner = np.full(program.layout.num_variables, -1)
+    for idx in (pred.p, pred.a, pred.lam):
+        owner[idx] = np.arange(pred.H)[None, :, None]
+    eq = c.predictor._equality
+    kkt = eq.rows < eq.num_kkt
+    row_owner = (eq.rows[kkt] // 2) % pred.H
+    col_owner = owner[eq.cols[kkt]]
+    assert np.all((col_owner == -1) | (col_owner == row_owner))

@@ -154,6 +154,8 @@ def test_bench_writes_the_documented_json(tmp_path):
             "cvmm",
             "--steps",
             "5",
+            "--scenario_text",
+            "{prediction: {max_neighbors: 0}}",
             "--json",
             str(out),
         ],
@@ -174,7 +176,16 @@ def test_bench_writes_the_documented_json(tmp_path):
         "robot",
         "humans",
         "predictor",
+        "mean_passes",
+        "max_neighbors",
     ):
         assert key in data, key
     assert data["steps"] == 5 and data["humans"] == 1 and data["predictor"] == "cvmm"
     assert data["p95_ms"] >= data["median_ms"] > 0
+    assert data["max_neighbors"] == 0
+
+
+def test_bench_rejects_a_bad_scenario_text():
+    from sm2ith_drake.cli import main
+
+    assert main(["bench", "--steps", "1", "--scenario_text", "{nope: 1}"]) == 2
