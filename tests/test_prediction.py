@@ -472,3 +472,49 @@ def test_program_grows_linearly_with_the_number_of_people():
     row_owner = (eq.rows[kkt] // 2) % pred.H
     col_owner = owner[eq.cols[kkt]]
     assert np.all((col_owner == -1) | (col_owner == row_owner))
+
+
+def test_preferred_velocity_is_the_low_pass_filtered_measurement():
+    """v_pref of the ORCA model: a new person starts at their measured
+    velocity, then follows a first-order filter with the configured time
+    constant (closed form: after t seconds of a step change the remaining
+    difference is (τ/(τ+Δ))^(t/Δ)); a non-finite measurement keeps the last
+    value; the predictor's v_pref is what the controller passes."""
+    robot = MobileManipulator("ridgeback_ur10")
+    config = ControllerConfig()
+    c = MpcController(
+        robot,
+        [TaskConfig(kind="base_position", target=[4.0, 0.0])],
+        config,
+        prediction=PredictionConfig(
+            predictor="orca_kkt", max_humans=2, preferred_velocity_time_constant=2.0
+        ),
+        safety=SafetyConfig(),
+    )
+    state = c.InitialState()
+    walking = HumanEstimate(ids=[7], positions=[[5.0, 5.0]], velocities=[[1.0, 0.0]])
+    state.preferred_velocities = c._PreferredVelocities(state, walking)
+    np.testing.assert_allclose(state.preferred_velocities[7], [1.0, 0.0])
+    turned = HumanEstimate(ids=[7], positions=[[5.0, 5.0]], velocities=[[0.0, 1.0]])
+    steps = 10
+    for _ in range(steps):
+        state.preferred_velocities = c._PreferredVelocities(state, turned)
+    decay = (2.0 / (2.0 + c.period)) ** steps
+    np.testing.assert_allclose(
+        state.preferred_velocities[7], [decay, 1.0 - decay], atol=1e-12
+    )
+    lost = HumanEstimate(ids=[7], positions=[[5.0, 5.0]], velocities=[[np.nan, 0.0]])
+    kept = c._PreferredVelocities(state, lost)
+    np.testing.assert_array_equal(kept[7], state.preferred_velocities[7])
+    # Through a control step, the predictor's v_pref is the filtered value.
+    new = c.Step(
+        state,
+        time_now=0.0,
+        q0=robot.default_q,
+        nu0=np.zeros(robot.num_velocities),
+        targets={"base_position": np.array([4.0, 0.0])},
+        humans=turned,
+    )
+    slot = int(np.nonzero(c.predictor.slot_ids == 7)[0][0])
+    np.testing.assert_allclose(c.predictor.v_pref[slot], new.preferred_velocities[7])
+    assert c.predictor.v_pref[slot][0] > 0.05  # not the latest measurement

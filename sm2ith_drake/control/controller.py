@@ -70,6 +70,9 @@ class ControllerState:
     last_solution: MpcSolution | None = None
     command_u: np.ndarray | None = None
     command_nu: np.ndarray | None = None
+    # The prediction model's preferred velocity of every tracked human, by
+    # id (low-pass filtered measured velocities; see PredictionConfig).
+    preferred_velocities: dict = field(default_factory=dict)
     counters: ControllerCounters = field(default_factory=ControllerCounters)
     record: StepRecord = field(default_factory=StepRecord)
 
@@ -109,6 +112,7 @@ class MpcController:
             raise ValueError(f"task names must be unique: {names}")
         segments = ObstacleSegments(obstacles)
         self.predictor = None
+        self.prediction = prediction
         if prediction is not None:
             self.predictor = MakePredictor(
                 prediction,
@@ -180,7 +184,18 @@ class MpcController:
         record = StepRecord(time=time_now)
         solution = None
         if self.predictor is not None:
-            self.predictor.SetHumans(humans)
+            new.preferred_velocities = self._PreferredVelocities(state, humans)
+            self.predictor.SetHumans(
+                humans,
+                None
+                if humans is None
+                else np.array(
+                    [
+                        new.preferred_velocities.get(int(i), v)
+                        for i, v in zip(humans.ids, humans.velocities, strict=True)
+                    ]
+                ).reshape(-1, 2),
+            )
         if np.all(np.isfinite(q0)) and np.all(np.isfinite(nu0)):
             try:
                 solution = self.solver.Solve(
@@ -249,6 +264,30 @@ class MpcController:
             ).ravel()
         new.record = record
         return new
+
+    def _PreferredVelocities(self, state: ControllerState, humans) -> dict:
+        """Each tracked human's v_pref: the measured velocity low-pass
+        filtered with ``preferred_velocity_time_constant`` (a new or
+        untracked id starts from its measurement; a non-finite measurement
+        keeps the previous value)."""
+        if humans is None:
+            return {}
+        tau = self.prediction.preferred_velocity_time_constant
+        alpha = 1.0 if tau <= 0 else self.period / (tau + self.period)
+        out = {}
+        for hid, v in zip(humans.ids, humans.velocities, strict=True):
+            hid = int(hid)
+            previous = state.preferred_velocities.get(hid)
+            if not np.all(np.isfinite(v)):
+                if previous is not None:
+                    out[hid] = previous
+                continue
+            out[hid] = (
+                np.array(v, dtype=float)
+                if previous is None
+                else previous + alpha * (np.asarray(v) - previous)
+            )
+        return out
 
     def _ReplayIsSafe(self, q0, nu0, u, humans) -> bool:
         """Whether replaying ``u`` for one control period keeps the DT-CBF

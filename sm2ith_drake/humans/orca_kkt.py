@@ -35,18 +35,30 @@ dynamics p_{k+1} = p_k + Δt a_k, v_{k+1} = a_k. Exact complementarity
 violates the usual constraint qualifications; it is relaxed to λ·c ≥ −ε with
 ε = ``complementarity_relaxation`` (chosen by measurement, see scenario.py).
 
-Neighbours. As RVO2 (``maxNeighbors``), each human reacts to at most
-``max_neighbors`` other humans (and always to the robot base): the ones that
-come closest within the horizon at constant velocity, chosen once per
-control step (an incumbent is only replaced by someone closer by
-``neighbor_hysteresis``). With max_neighbors ≥ H − 1 every pair interacts.
-This keeps the problem's size linear in the number of people; the sparsity
-pattern changes only when a neighbour set changes (``pattern_key``).
+Agents. As RVO2 (``maxNeighbors``), each human reacts to at most
+``max_neighbors`` other humans: the ones that come closest within the
+horizon at constant velocity, chosen once per control step (an incumbent is
+only replaced by someone closer by ``neighbor_hysteresis``); with
+max_neighbors ≥ H − 1 every pair interacts. This keeps the problem's size
+linear in the number of people. Every human also reacts to the robot as the
+simulated people see it (humans/crowd.py): its base, and its body nearest
+to the human (the closest point on the nearest capsule's axis, moving with
+the base), so an outstretched arm is avoided too.
 
 The half-planes depend on the predicted states, so the robot's plan moves
 the predicted humans: that is the interaction. Their Jacobians w.r.t. the
 states are taken by central differences of the vectorized ORCA agent lines
-of humans/orca.py, the same geometry the reference uses (piecewise smooth).
+of humans/orca.py, the same geometry the reference uses (piecewise smooth),
+and the chain rule through the nearest body's point (NearestBodies).
+
+Jacobian. With ``neighbor_derivatives`` the KKT Jacobian is exact and its
+sparsity pattern changes with the neighbour sets (``pattern_key``; the RTI
+solver keeps a QP workspace per pattern). By default it is block-Jacobi:
+each human's block is differentiated only w.r.t. its own and the robot's
+states, while the lines are still evaluated at the other humans' current
+predictions, so every human's block couples to the robot only (a sparse
+factorization linear in the number of people) and a converged plan still
+satisfies the coupled KKT system.
 """
 
 from dataclasses import dataclass
@@ -223,7 +235,6 @@ class OrcaKkt(Predictor):
         self.A = self.K + 2  # agent lines per human
         self.S = len(self.segments)
         self.R = 2 + self.A + self.S  # constraints (multipliers) per human
-        self.v_pref = np.zeros((H, 2))
         # neighbors[j]: the humans whose lines human j has (sorted indices).
         self.neighbors = np.array(
             [[i for i in range(H) if i != j][: self.K] for j in range(H)], dtype=int
@@ -263,9 +274,8 @@ class OrcaKkt(Predictor):
         lower[self.p[0]] = upper[self.p[0]] = self.p0
         lower[self.lam] = 0.0
 
-    def SetHumans(self, estimate):
-        super().SetHumans(estimate)
-        self.v_pref = self.v0.copy()
+    def SetHumans(self, estimate, preferred_velocities=None):
+        super().SetHumans(estimate, preferred_velocities)
         neighbors = self.SelectNeighbors()
         if not np.array_equal(neighbors, self.neighbors):
             self.neighbors = neighbors

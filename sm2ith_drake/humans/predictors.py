@@ -52,6 +52,7 @@ class Predictor:
         self._slot_ids = np.full(self.H, -1)  # id per slot, −1 = empty
         self.p0 = np.tile(PARKED, (self.H, 1)) + 10.0 * np.arange(self.H)[:, None]
         self.v0 = np.zeros((self.H, 2))
+        self.v_pref = np.zeros((self.H, 2))  # the ORCA model's v_pref
         self.active = np.zeros(self.H, dtype=bool)
         self.dropped = 0  # humans beyond H that could not get a slot
 
@@ -62,14 +63,27 @@ class Predictor:
     def ConstraintGroups(self, program) -> list:
         return []
 
-    def SetHumans(self, estimate: HumanEstimate | None) -> None:
-        """Assigns the tracked humans to slots (stable by id)."""
+    def SetHumans(
+        self,
+        estimate: HumanEstimate | None,
+        preferred_velocities: np.ndarray | None = None,
+    ) -> None:
+        """Assigns the tracked humans to slots (stable by id).
+
+        ``preferred_velocities`` (rows as the estimate's; default: the
+        measured velocities) are the v_pref of the ORCA model."""
         estimate = estimate or HumanEstimate()
-        ok = np.all(np.isfinite(estimate.positions), axis=1) & np.all(
-            np.isfinite(estimate.velocities), axis=1
+        if preferred_velocities is None:
+            preferred_velocities = estimate.velocities
+        preferred_velocities = np.asarray(preferred_velocities, float).reshape(-1, 2)
+        ok = (
+            np.all(np.isfinite(estimate.positions), axis=1)
+            & np.all(np.isfinite(estimate.velocities), axis=1)
+            & np.all(np.isfinite(preferred_velocities), axis=1)
         )
         ids = estimate.ids[ok]
         pos, vel = estimate.positions[ok], estimate.velocities[ok]
+        pref = preferred_velocities[ok]
         keep = np.isin(self._slot_ids, ids)
         self._slot_ids[~keep] = -1
         self.dropped = 0
@@ -84,10 +98,12 @@ class Predictor:
                 slots = free[:1]
             self.p0[slots[0]] = pos[i]
             self.v0[slots[0]] = vel[i]
+            self.v_pref[slots[0]] = pref[i]
         self.active = self._slot_ids >= 0
         parked = np.tile(PARKED, (self.H, 1)) + 10.0 * np.arange(self.H)[:, None]
         self.p0[~self.active] = parked[~self.active]
         self.v0[~self.active] = 0.0
+        self.v_pref[~self.active] = 0.0
 
     @property
     def slot_ids(self) -> np.ndarray:
