@@ -316,6 +316,7 @@ def _AddCrowd(builder, scenario, robot, segments):
             time_step=scenario.crowd_time_step,
             tau=scenario.prediction.tau,
             tau_obs=scenario.prediction.tau_obs,
+            model=scenario.prediction,
         ),
     )
 

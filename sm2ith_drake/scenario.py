@@ -110,7 +110,7 @@ class ControllerConfig:
     check_predictions: bool = False
 
 
-HUMAN_BEHAVIORS = ("orca", "social_force", "scripted", "adversarial")
+HUMAN_BEHAVIORS = ("orca", "social_force", "scripted", "adversarial", "relaxed_orca")
 PREDICTORS = ("orca_kkt", "cvmm", "react")
 
 
@@ -121,7 +121,8 @@ class HumanConfig:
     # orca: walks its waypoints with ORCA, reacting to the robot base and the
     # others; social_force: Helbing's social force model; scripted: follows
     # its waypoints at its speed and ignores everyone; adversarial: walks
-    # straight at the robot base.
+    # straight at the robot base; relaxed_orca: walks its waypoints exactly
+    # as the SM²ITH prediction model says (humans/crowd.py).
     behavior: str = "orca"
     start: list[float] = field(default_factory=lambda: [0.0, 0.0])
     # Goals in order; the human stays at the last (or loops).

@@ -1,12 +1,21 @@
 """Closed-loop safety among people: crossing and corridor scenarios for each
-robot, predictor, crowd model and number of people; and the faithfulness of
-the KKT embedding in closed loop.
+robot, predictor, crowd model and number of people; the barrier among
+people who walk exactly as the prediction model says; and the faithfulness
+of the KKT embedding in closed loop.
 
 The default suite runs a representative subset; ``pytest -m slow`` runs the
-whole SM²ITH campaign (both robots × 1–3 people × ORCA and social-force
-crowds × 2 seeds, and the corridors). The CVMM and React baselines are
-compared in the experiments, not asserted safe here: in our measurements
-React hit a person once in 28 runs.
+whole campaign (both robots × {orca_kkt, cvmm, react} × 1–3 people × ORCA
+and social-force crowds × 2 seeds, and the corridors: 84 runs) and the
+model-conforming people over 3 seeds.
+
+Among the ORCA and social-force people (who do not follow the prediction
+model: goal-directed, RVO2's own obstacle handling, ...) no robot body may
+touch anyone; the barrier h ≥ 0 is asserted where it is a theorem, among
+people who walk as modelled (``relaxed_orca``, known intents) on the
+holonomic Ridgeback–UR10, which can do its share of the avoidance. The
+Stretch 3 (0.3 m/s, nonholonomic) cannot always: a person who takes only
+half of the avoidance (ORCA's reciprocity) can make the barrier infeasible,
+and there only contact is excluded.
 """
 
 import itertools
@@ -40,7 +49,6 @@ def _CheckSafe(name, predictor, behavior, seed):
     print(label, f"h_min {h_min:.3f}", f"fallbacks {m['fallbacks']}")
     assert m["collision_samples"] == 0, label
     assert m["min_human_gap"] > 0.0, label
-    assert h_min >= -0.05, label
     assert m["solver_failures"] <= 0.01 * m["control_steps"] + 1, label
 
 
@@ -58,15 +66,20 @@ def test_no_collision_subset(name, predictor, behavior, seed):
     _CheckSafe(name, predictor, behavior, seed)
 
 
+PREDICTORS = ["orca_kkt", "cvmm", "react"]
 FULL_CASES = [
-    (f"crossing_{robot}_{n}h", "orca_kkt", behavior, seed)
-    for robot, n, behavior, seed in itertools.product(
-        ["ridgeback_ur10", "stretch3"], [1, 2, 3], ["orca", "social_force"], [0, 1]
+    (f"crossing_{robot}_{n}h", predictor, behavior, seed)
+    for predictor, robot, n, behavior, seed in itertools.product(
+        PREDICTORS,
+        ["ridgeback_ur10", "stretch3"],
+        [1, 2, 3],
+        ["orca", "social_force"],
+        [0, 1],
     )
 ] + [
-    (f"corridor_{robot}", "orca_kkt", behavior, 0)
-    for robot, behavior in itertools.product(
-        ["ridgeback_ur10", "stretch3"], ["orca", "social_force"]
+    (f"corridor_{robot}", predictor, behavior, 0)
+    for predictor, robot, behavior in itertools.product(
+        PREDICTORS, ["ridgeback_ur10", "stretch3"], ["orca", "social_force"]
     )
 ]
 
@@ -75,6 +88,74 @@ FULL_CASES = [
 @pytest.mark.parametrize("name,predictor,behavior,seed", FULL_CASES)
 def test_no_collision_campaign(name, predictor, behavior, seed):
     _CheckSafe(name, predictor, behavior, seed)
+
+
+def _RunModelPeople(name, seed, predictor="orca_kkt"):
+    """People who walk exactly as the SM²ITH prediction model says (crowd
+    behaviour relaxed_orca, stepped at the MPC's Δt), seen perfectly with
+    their intents; the seed moves their starts."""
+    from sm2ith_drake.experiments.campaign import ApplySeed
+
+    scenario = LoadScenario(
+        filename=CROSSING, scenario_name=name, scenario_text="{crowd_time_step: 0.2}"
+    )
+    scenario.prediction.predictor = predictor
+    scenario.perception.estimator = "truth"
+    for human in scenario.humans:
+        human.behavior = "relaxed_orca"
+    m = RunSimulation(ApplySeed(scenario, seed)).metrics
+    return m, m["min_human_gap"] - scenario.safety.human_margin
+
+
+MODEL_CASES = [
+    "crossing_ridgeback_ur10_1h",
+    "crossing_ridgeback_ur10_2h",
+    "crossing_ridgeback_ur10_3h",
+    "corridor_ridgeback_ur10",
+]
+
+
+def _CheckBarrier(name, seed):
+    m, h_min = _RunModelPeople(name, seed)
+    label = f"{name} seed {seed}: h_min {h_min:.4f}"
+    print(label)
+    assert m["collision_samples"] == 0, label
+    # The DT-CBF h(x_{k+1}) ≥ (1 − γ) h(x_k) keeps h ≥ 0 at the true state.
+    assert h_min >= -1e-3, label
+    assert m["solver_failures"] == 0, label
+
+
+@pytest.mark.parametrize("name", MODEL_CASES)
+def test_barrier_holds_among_people_who_walk_as_modelled(name):
+    _CheckBarrier(name, 0)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name,seed", list(itertools.product(MODEL_CASES, [1, 2, 3])))
+def test_barrier_holds_among_people_who_walk_as_modelled_seeds(name, seed):
+    _CheckBarrier(name, seed)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "name,seed",
+    list(
+        itertools.product(
+            [
+                "crossing_stretch3_1h",
+                "crossing_stretch3_2h",
+                "crossing_stretch3_3h",
+                "corridor_stretch3",
+            ],
+            [0, 1, 2],
+        )
+    ),
+)
+def test_stretch_never_touches_people_who_walk_as_modelled(name, seed):
+    m, h_min = _RunModelPeople(name, seed)
+    print(f"{name} seed {seed}: h_min {h_min:.4f}")
+    assert m["collision_samples"] == 0
+    assert m["min_human_gap"] > 0.0
 
 
 def test_kkt_predictions_match_resolved_orca_in_closed_loop():

@@ -269,14 +269,19 @@ class MpcController:
         """Each tracked human's v_pref: the measured velocity low-pass
         filtered with ``preferred_velocity_time_constant`` (a new or
         untracked id starts from its measurement; a non-finite measurement
-        keeps the previous value)."""
+        keeps the previous value), or the intent the estimate knows (ideal
+        perception of people who walk as the model says)."""
         if humans is None:
             return {}
         tau = self.prediction.preferred_velocity_time_constant
         alpha = 1.0 if tau <= 0 else self.period / (tau + self.period)
+        known = humans.preferred_velocities
         out = {}
-        for hid, v in zip(humans.ids, humans.velocities, strict=True):
+        for row, (hid, v) in enumerate(zip(humans.ids, humans.velocities, strict=True)):
             hid = int(hid)
+            if known is not None and np.all(np.isfinite(known[row])):
+                out[hid] = known[row].copy()  # the simulation's ground truth
+                continue
             previous = state.preferred_velocities.get(hid)
             if not np.all(np.isfinite(v)):
                 if previous is not None:

@@ -11,7 +11,14 @@ The crowd moves with time step Δt_c. Each human has a behaviour:
 - ``scripted``: walks its waypoints at its speed, ignoring everyone;
 - ``adversarial``: walks straight at the robot base, stopping 10 cm before
   touching any robot body (base or arm), as a person blocking the robot
-  would.
+  would;
+- ``relaxed_orca``: walks its waypoints exactly as SM²ITH's prediction model
+  says a person does: the relaxed-ORCA QP (eq. relaxed_orca_acc_argmin) with
+  the prediction's parameters, the crowd's step as Δt, the other people and
+  the robot's base and nearest body as agents and one line per wall
+  (humans/orca_kkt.py). With ideal perception the controller also knows
+  their preferred velocities, so these are the people who "behave within
+  the model" of the safety tests.
 """
 
 from dataclasses import dataclass
@@ -29,6 +36,9 @@ class CrowdState:
     positions: np.ndarray  # (H, 2)
     velocities: np.ndarray  # (H, 2)
     waypoint: np.ndarray  # (H,) index of the current goal
+    # The preferred velocity each "relaxed_orca" person used in its last
+    # step (NaN for the other behaviours): their intent, as ground truth.
+    preferred: np.ndarray | None = None
 
 
 def InitialCrowdState(humans) -> CrowdState:
@@ -37,6 +47,7 @@ def InitialCrowdState(humans) -> CrowdState:
         positions=np.array([h.start for h in humans], dtype=float).reshape(H, 2),
         velocities=np.zeros((H, 2)),
         waypoint=np.zeros(H, dtype=int),
+        preferred=np.full((H, 2), np.nan),
     )
 
 
@@ -102,11 +113,14 @@ def StepCrowd(
     tau: float,
     tau_obs: float,
     robot_bodies=None,
+    model=None,
 ) -> CrowdState:
     """Advances every human by dt; returns the new state.
 
     ``robot_bodies`` = (segments (C, 2, 2), radii (C,)): the robot's capsules
-    projected on the floor (default: the base disc)."""
+    projected on the floor (default: the base disc). ``model``: the
+    PredictionConfig whose relaxed-ORCA model the "relaxed_orca" people
+    follow."""
     H = len(humans)
     p, v = state.positions.copy(), state.velocities.copy()
     radii = np.array([h.radius for h in humans], dtype=float)
@@ -114,6 +128,7 @@ def StepCrowd(
     robot_position = np.asarray(robot_position, dtype=float)[:2]
     robot_velocity = np.asarray(robot_velocity, dtype=float)[:2]
     new_v = np.zeros((H, 2))
+    preferred = np.full((H, 2), np.nan)
     social = [j for j, h in enumerate(humans) if h.behavior == "social_force"]
     for j, h in enumerate(humans):
         waiting = time < h.start_time
@@ -154,6 +169,24 @@ def StepCrowd(
                 time_step=dt,
                 obstacles=[tuple(s) for s in obstacle_segments],
             )
+        elif h.behavior == "relaxed_orca":
+            if model is None:
+                raise ValueError("relaxed_orca people need the prediction model")
+            new_v[j] = _ModelVelocity(
+                j,
+                p,
+                v,
+                radii,
+                v_pref[j],
+                robot_position=robot_position,
+                robot_velocity=robot_velocity,
+                robot_radius=robot_radius,
+                robot_bodies=robot_bodies,
+                obstacle_segments=obstacle_segments,
+                model=model,
+                dt=dt,
+            )
+            preferred[j] = v_pref[j]
     if social:
         from sm2ith_drake.humans.social_force import social_force_step
 
@@ -173,5 +206,60 @@ def StepCrowd(
         )
         new_v[social] = sv[social]
     return CrowdState(
-        positions=p + dt * new_v, velocities=new_v, waypoint=state.waypoint.copy()
+        positions=p + dt * new_v,
+        velocities=new_v,
+        waypoint=state.waypoint.copy(),
+        preferred=preferred,
     )
+
+
+def _ModelVelocity(
+    j,
+    p,
+    v,
+    radii,
+    v_pref,
+    *,
+    robot_position,
+    robot_velocity,
+    robot_radius,
+    robot_bodies,
+    obstacle_segments,
+    model,
+    dt,
+):
+    """Person j's next velocity by the prediction model (humans/orca_kkt.py):
+    the relaxed-ORCA QP over the other people's, the robot base's and the
+    robot's nearest body's ORCA lines and one line per wall."""
+    from sm2ith_drake.humans.orca_kkt import (
+        obstacle_half_planes,
+        orca_agent_half_planes,
+    )
+    from sm2ith_drake.humans.relaxed_orca import relaxed_orca_action
+
+    others = [i for i in range(len(p)) if i != j]
+    if robot_bodies is None:
+        body_p, body_r = robot_position, robot_radius
+    else:
+        body_p, body_r, _ = _NearestBody(p[j], robot_bodies)
+    other_p = np.vstack([p[others], robot_position, body_p])
+    other_v = np.vstack([v[others], robot_velocity, robot_velocity])
+    radius = np.concatenate([radii[others], [robot_radius, body_r]]) + radii[j]
+    share = np.concatenate([np.full(len(others), 0.5), [model.robot_share] * 2])
+    n, rho = orca_agent_half_planes(
+        p[j], v[j], other_p, other_v, radius, share, tau=model.tau, time_step=dt
+    )
+    segments = np.asarray(obstacle_segments, dtype=float).reshape(-1, 2, 2)
+    no, rho_o = obstacle_half_planes(p[j], segments, radii[j], tau_obs=model.tau_obs)
+    return relaxed_orca_action(
+        v_pref,
+        v[j],
+        n,
+        rho,
+        max_speed=model.max_speed,
+        max_accel=model.max_acceleration,
+        time_step=dt,
+        slack_weights=(model.slack_weight_acceleration, model.slack_weight_velocity),
+        static_normals=no,
+        static_offsets=rho_o,
+    ).velocity

@@ -28,12 +28,23 @@ class HumanEstimate:
     ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
     positions: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     velocities: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    # Known preferred velocities (intents), NaN where unknown. Only the
+    # simulation's ground truth knows them, for people who walk as the
+    # prediction model says (crowd behaviour "relaxed_orca"); None: unknown.
+    preferred_velocities: np.ndarray | None = None
 
     def __post_init__(self):
         self.ids = np.asarray(self.ids, dtype=int).reshape(-1)
         self.positions = np.asarray(self.positions, dtype=float).reshape(-1, 2)
         self.velocities = np.asarray(self.velocities, dtype=float).reshape(-1, 2)
-        if not (len(self.ids) == len(self.positions) == len(self.velocities)):
+        if self.preferred_velocities is not None:
+            self.preferred_velocities = np.asarray(
+                self.preferred_velocities, dtype=float
+            ).reshape(-1, 2)
+        lengths = {len(self.ids), len(self.positions), len(self.velocities)}
+        if self.preferred_velocities is not None:
+            lengths.add(len(self.preferred_velocities))
+        if len(lengths) != 1:
             raise ValueError(
                 "HumanEstimate: ids, positions, velocities differ in length"
             )

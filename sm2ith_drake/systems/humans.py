@@ -36,7 +36,8 @@ class CrowdSimulator(LeafSystem):
         - human_truth
 
     ``human_truth`` is a HumanEstimate with the true positions and
-    velocities (ids 0 … H−1, in scenario order).
+    velocities (ids 0 … H−1, in scenario order), and the preferred velocities
+    of the people who walk as the prediction model says (NaN for the rest).
     """
 
     def __init__(
@@ -48,8 +49,11 @@ class CrowdSimulator(LeafSystem):
         time_step: float = 0.05,
         tau: float = 2.0,
         tau_obs: float = 0.5,
+        model=None,
     ):
+        """``model``: the PredictionConfig that "relaxed_orca" people follow."""
         super().__init__()
+        self._model = model
         self._robot = robot
         self._humans = list(humans)
         self._segments = np.asarray(obstacle_segments, dtype=float).reshape(-1, 2, 2)
@@ -85,6 +89,7 @@ class CrowdSimulator(LeafSystem):
             tau=self._tau,
             tau_obs=self._tau_obs,
             robot_bodies=bodies,
+            model=self._model,
         )
         state.get_mutable_abstract_state(self._state).set_value(new)
 
@@ -95,6 +100,7 @@ class CrowdSimulator(LeafSystem):
                 ids=np.arange(len(self._humans)),
                 positions=crowd.positions,
                 velocities=crowd.velocities,
+                preferred_velocities=crowd.preferred,
             )
         )
 
