@@ -65,6 +65,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sm2ith_drake.control.cbf import point_segment_distance_2d
 from sm2ith_drake.control.program import ConstraintGroup, _BlockPattern
 from sm2ith_drake.humans.orca import orca_agent_lines
 from sm2ith_drake.humans.predictors import Predictor
@@ -177,11 +178,9 @@ def NearestBodies(robot: RobotView, positions) -> NearestBody:
     dd = np.sum(d * d, axis=-1)  # (T, 1, C)
     w = P[:, :, None] - A  # (T, H, C, 2)
     short = dd < 1e-9  # a vertical capsule is a point on the floor
-    s_raw = np.sum(w * d, axis=-1) / np.where(short, 1.0, dd)
-    s = np.where(short, 0.0, np.clip(s_raw, 0.0, 1.0))
+    dist, s, _ = point_segment_distance_2d(A, B, P[:, :, None])  # (T, H, C)
     closest = A + s[..., None] * d  # (T, H, C, 2)
-    gap = np.linalg.norm(P[:, :, None] - closest, axis=-1) - robot.radii
-    i = np.argmin(gap, axis=-1)  # (T, H)
+    i = np.argmin(dist - robot.radii, axis=-1)  # (T, H)
     T, H = P.shape[:2]
     t_idx, h_idx = np.meshgrid(np.arange(T), np.arange(H), indexing="ij")
     s_i = s[t_idx, h_idx, i]
@@ -315,25 +314,28 @@ class OrcaKkt(Predictor):
         a = z[self.a]
         return np.concatenate([self.v0[None], a[:-1]], axis=0)
 
-    def RobotView(self, q, nu) -> "RobotView":
+    def RobotView(self, q, nu, kin=None) -> "RobotView":
         """The robot as the people see it at the configurations q (T, n) and
         velocities ν (T, m): its base, and its bodies for the nearest-body
-        agent (see _AgentStates)."""
+        agent (see _AgentStates). ``kin``: the kinematics of configurations
+        whose first T rows are q, if the caller has them already."""
         robot = self.robot
         G = np.stack([robot.G(qk) for qk in q])  # (T, n, m)
-        kin = robot.CalcKinematics(q)
+        if kin is None:
+            kin = robot.CalcKinematics(q)
+        T = len(q)
         return RobotView(
             q=q,
             nu=nu,
             p=q[:, :2],
             v=np.einsum("knm,km->kn", G[:, :2], nu),
-            ends=kin.capsule_points[..., :2],
-            ends_jacobian=kin.capsule_jacobians[..., :2, :],
+            ends=kin.capsule_points[:T, ..., :2],
+            ends_jacobian=kin.capsule_jacobians[:T, ..., :2, :],
             radii=robot.capsule_radii,
         )
 
-    def _RobotView(self, z, layout):
-        return self.RobotView(z[layout.q[:-1]], z[layout.nu[:-1]])
+    def _RobotView(self, z, layout, kin=None):
+        return self.RobotView(z[layout.q[:-1]], z[layout.nu[:-1]], kin)
 
     def _AgentStates(self, positions, velocities, robot):
         """Each line's own and other agent's states, (T, H, A, 2) each (own
@@ -643,7 +645,9 @@ class _KktBlocks:
             return self._cache
         pred, layout = self.pred, self.layout
         z = point.z
-        p, v, robot = pred.LocalState(z, layout)
+        p = z[pred.p[:-1]]
+        v = pred._HumanVelocities(z)
+        robot = pred._RobotView(z, layout, point.kin)
         (n, rho, no, rho_o), (dn, drho, dno, drho_o), body = pred.HalfPlaneDerivatives(
             p, v, robot
         )
