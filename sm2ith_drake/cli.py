@@ -22,17 +22,14 @@ from sm2ith_drake.errors import UserError  # noqa: E402
 
 
 def _Load(filename: str, name: str, text: str):
-    from sm2ith_drake.diagrams import MakeRobot
-    from sm2ith_drake.scenario import LoadScenario, ScenarioError
+    from sm2ith_drake.scenario import ScenarioError
+    from sm2ith_drake.scenario_loader import LoadScenarioAndRobot
 
     try:
-        scenario = LoadScenario(
+        scenario, _ = LoadScenarioAndRobot(
             filename=filename, scenario_name=name, scenario_text=text
         )
-        MakeRobot(scenario)  # the robot's own checks (URDF, joint limits)
-    except FileNotFoundError as e:
-        raise UserError(str(e)) from e
-    except (ScenarioError, ValueError) as e:
+    except (FileNotFoundError, ScenarioError) as e:
         raise UserError(str(e)) from e
     return scenario
 
@@ -120,7 +117,8 @@ def BenchmarkScenario(
     scripted people pacing across its way; ``scenario_text`` (YAML) is
     applied on top, e.g. "{prediction: {max_neighbors: 9}}"."""
     from sm2ith_drake.resources import GetDiagramsDir
-    from sm2ith_drake.scenario import ApplyScenarioText, HumanConfig, ScenarioError
+    from sm2ith_drake.scenario import HumanConfig, ScenarioError
+    from sm2ith_drake.scenario_loader import ApplyScenarioText
 
     if humans < 0:
         raise UserError("--humans must be ≥ 0")

@@ -25,23 +25,15 @@ from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 
 from sm2ith_drake.control.cbf import ObstacleSegments
 from sm2ith_drake.control.tasks import BasePose, BasePosition, EePosition, MakeTask
-from sm2ith_drake.robots import MobileManipulator
-from sm2ith_drake.scenario import ControlPeriod, Scenario, ValidateScenario
+from sm2ith_drake.scenario import ControlPeriod, Scenario
+from sm2ith_drake.scenario_checks import ValidateScenario
+from sm2ith_drake.scenario_loader import MakeRobot
 from sm2ith_drake.systems.controller import HierarchicalMpc
 from sm2ith_drake.systems.humans import CrowdSimulator, HumanEstimator, MocapSensor
 from sm2ith_drake.systems.logger import RunLogger
 from sm2ith_drake.systems.planner import TaskPlanner
 from sm2ith_drake.systems.robot import KinematicRobot
 from sm2ith_drake.systems.visualization import HumanVisualizer, PlanVisualizer
-
-
-def MakeRobot(scenario: Scenario) -> MobileManipulator:
-    """The scenario's MobileManipulator, with its joint-limit overrides."""
-    robot = MobileManipulator(
-        scenario.robot.model, urdf_path=scenario.robot.urdf_path or None
-    )
-    robot.NarrowJointLimits(scenario.robot.joint_limits)
-    return robot
 
 
 def MakeSimulation(

@@ -29,7 +29,7 @@ NO_PEOPLE = "hardware_stretch3_no_people"
 
 
 def _Scenario(name="hardware_stretch3", text="{}"):
-    from sm2ith_drake.scenario import LoadScenario
+    from sm2ith_drake.scenario_loader import LoadScenario
 
     scenario = LoadScenario(filename=HARDWARE, scenario_name=name, scenario_text=text)
     scenario.hardware.lcm.lcm_url = "memq://"
@@ -67,8 +67,8 @@ class _Bench:
         from pydrake.lcm import DrakeLcm
         from pydrake.systems.analysis import Simulator
 
-        from sm2ith_drake.diagrams import MakeRobot
         from sm2ith_drake.lcm.interface import GetCommandTiming, MakeHardwareDiagram
+        from sm2ith_drake.scenario_loader import MakeRobot
 
         self.scenario = scenario
         self.lcm = DrakeLcm("memq://")
@@ -585,8 +585,8 @@ def test_stale_detections_widen_uncertainty_slow_then_stop():
 
 
 def test_slowed_command_is_the_scaled_controller_command():
-    from sm2ith_drake.diagrams import MakeRobot
     from sm2ith_drake.lcm.interface import MODE_SLOWED, GateCommand
+    from sm2ith_drake.scenario_loader import MakeRobot
 
     robot = MakeRobot(_Scenario())
     m = robot.num_velocities
@@ -833,7 +833,7 @@ def _Orchestrate(workdir: str, result_path: str) -> None:
         lcmt_sm2ith_robot_command,
         lcmt_sm2ith_robot_state,
     )
-    from sm2ith_drake.scenario import LoadScenario
+    from sm2ith_drake.scenario_loader import LoadScenario
 
     work = Path(workdir)
     scenario_name = "hardware_stretch3"

@@ -7,7 +7,7 @@ import pytest
 from sm2ith_drake.control.controller import MpcController
 from sm2ith_drake.diagrams import RunSimulation
 from sm2ith_drake.resources import GetDiagramsDir
-from sm2ith_drake.scenario import LoadScenario
+from sm2ith_drake.scenario_loader import LoadScenario
 
 CONFLICT = GetDiagramsDir() / "conflict.scenarios.yaml"
 REACH = GetDiagramsDir() / "reach.scenarios.yaml"
@@ -141,7 +141,7 @@ def test_rti_converges_to_the_nlp_solution():
         scenario_name="ridgeback_ur10_reach",
         scenario_text="{tasks: [{kind: ee_position, target: [1.0, 0.5, 0.8]}]}",
     )
-    from sm2ith_drake.diagrams import MakeRobot
+    from sm2ith_drake.scenario_loader import MakeRobot
 
     robot = MakeRobot(scenario)
     q0 = robot.default_q.copy()
@@ -167,7 +167,7 @@ def test_rti_converges_to_the_nlp_solution():
 
 def test_failed_lower_stage_keeps_the_plan_above():
     from sm2ith_drake.control.htmpc import StageResult
-    from sm2ith_drake.diagrams import MakeRobot
+    from sm2ith_drake.scenario_loader import MakeRobot
 
     scenario = LoadScenario(filename=CONFLICT, scenario_name="conflict_ee_over_base")
     robot = MakeRobot(scenario)
@@ -208,7 +208,7 @@ def test_failed_lower_stage_keeps_the_plan_above():
 
 
 def test_joint_too_fast_to_stop_before_its_limit_is_braked_not_infeasible():
-    from sm2ith_drake.diagrams import MakeRobot
+    from sm2ith_drake.scenario_loader import MakeRobot
 
     scenario = LoadScenario(
         filename=GetDiagramsDir() / "reach.scenarios.yaml",

@@ -5,7 +5,8 @@ import pytest
 
 from sm2ith_drake.diagrams import RunSimulation
 from sm2ith_drake.resources import GetDiagramsDir
-from sm2ith_drake.scenario import LoadScenario, ScenarioError
+from sm2ith_drake.scenario import ScenarioError
+from sm2ith_drake.scenario_loader import LoadScenario
 
 FILE = GetDiagramsDir() / "pick_and_place.scenarios.yaml"
 
@@ -49,7 +50,8 @@ def test_bounded_run_log_keeps_the_latest_window():
     from pydrake.systems.framework import DiagramBuilder
 
     from sm2ith_drake.control.tasks import MakeTask
-    from sm2ith_drake.diagrams import AddControlStack, MakeRobot
+    from sm2ith_drake.diagrams import AddControlStack
+    from sm2ith_drake.scenario_loader import MakeRobot
     from sm2ith_drake.systems.robot import KinematicRobot
 
     scenario = LoadScenario(

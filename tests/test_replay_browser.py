@@ -9,7 +9,7 @@ import pytest
 
 from sm2ith_drake.diagrams import RunSimulation
 from sm2ith_drake.resources import GetDiagramsDir
-from sm2ith_drake.scenario import LoadScenario
+from sm2ith_drake.scenario_loader import LoadScenario
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 

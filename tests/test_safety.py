@@ -25,7 +25,7 @@ import pytest
 
 from sm2ith_drake.diagrams import RunSimulation
 from sm2ith_drake.resources import GetDiagramsDir
-from sm2ith_drake.scenario import LoadScenario
+from sm2ith_drake.scenario_loader import LoadScenario
 
 CROSSING = GetDiagramsDir() / "crossing.scenarios.yaml"
 
@@ -190,7 +190,7 @@ def test_adversarial_human_is_not_hit():
 
 def _replay_controller():
     from sm2ith_drake.control.controller import MpcController
-    from sm2ith_drake.diagrams import MakeRobot
+    from sm2ith_drake.scenario_loader import MakeRobot
 
     scenario = LoadScenario(
         filename=CROSSING, scenario_name="crossing_ridgeback_ur10_1h"

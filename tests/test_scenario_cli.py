@@ -6,7 +6,8 @@ import sys
 import pytest
 
 from sm2ith_drake.resources import GetDiagramsDir
-from sm2ith_drake.scenario import LoadScenario, ScenarioError, ScenarioNames
+from sm2ith_drake.scenario import ScenarioError
+from sm2ith_drake.scenario_loader import LoadScenario, ScenarioNames
 
 CONFLICT = str(GetDiagramsDir() / "conflict.scenarios.yaml")
 

@@ -281,7 +281,7 @@ def ApplySeed(scenario, seed: int):
 def LoadRunScenario(spec: RunSpec):
     """The Scenario of a run: the cell's scenario, the method's overrides,
     the seed's people."""
-    from sm2ith_drake.scenario import LoadScenario
+    from sm2ith_drake.scenario_loader import LoadScenario
 
     scenario = LoadScenario(
         filename=spec.scenario_file,
@@ -295,7 +295,7 @@ def _ReferencePath(spec: RunSpec, cache_dir: Path):
     """The base path of the same scenario and controller with no people (the
     "optimal path"), computed once per scenario and method and cached."""
     from sm2ith_drake.diagrams import RunSimulation
-    from sm2ith_drake.scenario import LoadScenario
+    from sm2ith_drake.scenario_loader import LoadScenario
 
     key = f"{spec.scenario}__{spec.method}__{spec.duration:g}".replace("/", "_")
     path = cache_dir / f"{key}.npy"

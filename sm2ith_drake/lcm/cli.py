@@ -14,19 +14,16 @@ def _UserError(message):
 
 
 def _LoadScenario(filename: str, name: str, text: str = "{}"):
-    from sm2ith_drake.diagrams import MakeRobot
     from sm2ith_drake.lcm.interface import ValidateHardwareConfig
-    from sm2ith_drake.scenario import LoadScenario, ScenarioError
+    from sm2ith_drake.scenario import ScenarioError
+    from sm2ith_drake.scenario_loader import LoadScenarioAndRobot
 
     try:
-        scenario = LoadScenario(
+        scenario, robot = LoadScenarioAndRobot(
             filename=filename, scenario_name=name, scenario_text=text
         )
         ValidateHardwareConfig(scenario.hardware)
-        robot = MakeRobot(scenario)
-    except FileNotFoundError as e:
-        raise _UserError(str(e)) from e
-    except (ScenarioError, ValueError) as e:
+    except (FileNotFoundError, ScenarioError, ValueError) as e:
         raise _UserError(str(e)) from e
     return scenario, robot
 

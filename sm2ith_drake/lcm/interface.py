@@ -807,7 +807,7 @@ def MakeHardwareInterface(*, scenario: Scenario, lcm, robot=None):
         ``detections_status`` (ReceiverState) and ``gate_status`` (GateState)
         carry the counters (see :func:`GetHardwareStatus`).
     """
-    from sm2ith_drake.diagrams import MakeRobot
+    from sm2ith_drake.scenario_loader import MakeRobot
 
     h = scenario.hardware
     ValidateHardwareConfig(h)
@@ -949,8 +949,9 @@ def MakeHardwareDiagram(*, scenario: Scenario, lcm, robot=None, tasks=None):
         ``human_estimator`` (with people).
     """
     from sm2ith_drake.control.tasks import MakeTask
-    from sm2ith_drake.diagrams import AddControlStack, MakeRobot
-    from sm2ith_drake.scenario import ValidateScenario
+    from sm2ith_drake.diagrams import AddControlStack
+    from sm2ith_drake.scenario_checks import ValidateScenario
+    from sm2ith_drake.scenario_loader import MakeRobot
 
     if tasks is None:
         ValidateScenario(scenario)
@@ -1236,7 +1237,7 @@ def RunHardware(
         solve and step times (ms), its counters, the hardware counters, the
         final task errors and why the run ended.
     """
-    from sm2ith_drake.diagrams import MakeRobot
+    from sm2ith_drake.scenario_loader import MakeRobot
 
     robot = MakeRobot(scenario)
     lcm = lcm if lcm is not None else DrakeLcm(scenario.hardware.lcm)
