@@ -9,8 +9,8 @@ import argparse
 import numpy as np
 from pydrake.systems.analysis import Simulator
 
-from sm2ith_drake.diagrams import MakeSimulation
-from sm2ith_drake.experiments.metrics import FormatMetrics, SummarizeRun
+from sm2ith_drake.diagrams.simulation import MakeSimulation
+from sm2ith_drake.run.metrics import FormatMetrics, SummarizeRun
 from sm2ith_drake.scenario import ControllerConfig, RobotConfig, Scenario, TaskConfig
 
 

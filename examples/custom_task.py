@@ -9,8 +9,8 @@ import argparse
 import numpy as np
 
 from sm2ith_drake.control.tasks import BasePosition, Task
-from sm2ith_drake.diagrams import RunSimulation
-from sm2ith_drake.experiments.metrics import FormatMetrics
+from sm2ith_drake.run.metrics import FormatMetrics
+from sm2ith_drake.run.simulation import RunSimulation
 from sm2ith_drake.scenario import RobotConfig, Scenario
 from sm2ith_drake.scenario_loader import MakeRobot
 

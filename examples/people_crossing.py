@@ -6,8 +6,8 @@ predictor and safety settings as dataclasses, then RunSimulation.
 
 import argparse
 
-from sm2ith_drake.diagrams import RunSimulation
-from sm2ith_drake.experiments.metrics import FormatMetrics
+from sm2ith_drake.run.metrics import FormatMetrics
+from sm2ith_drake.run.simulation import RunSimulation
 from sm2ith_drake.scenario import (
     ControllerConfig,
     HumanConfig,

@@ -9,6 +9,8 @@ closest-point parameters may be held fixed while differentiating).
 import numpy as np
 
 _EPS = 1e-12
+# Guards the point–segment division (degenerate segments only).
+_EPS_SEGMENT = 1e-9
 
 
 def segment_closest_points(p1, q1, p2, q2):
@@ -49,12 +51,6 @@ def segment_closest_points(p1, q1, p2, q2):
     c1 = p1 + s[..., None] * d1
     c2 = p2 + t[..., None] * d2
     return s, t, c1, c2
-
-
-def capsule_distance(pA1, pB1, r1, pA2, pB2, r2):
-    """Signed distances between capsules (arrays broadcast over leading axes)."""
-    _, _, c1, c2 = segment_closest_points(pA1, pB1, pA2, pB2)
-    return np.linalg.norm(c1 - c2, axis=-1) - r1 - r2
 
 
 def capsule_pair_distance_and_gradient(points1, jac1, r1, points2, jac2, r2):
@@ -106,3 +102,19 @@ def capsule_distance_and_gradient(robot, kin, pairs):
     return capsule_pair_distance_and_gradient(
         P[:, i], J[:, i], radii[i], P[:, j], J[:, j], radii[j]
     )
+
+
+def point_segment_distance_2d(A, B, P):
+    """Distances from points P to segments A–B in the plane (arrays (..., 2)).
+
+    Returns (d, s, n): the distance, the closest-point parameter on the
+    segment and the unit vector from P to the closest point.
+    """
+    AB = B - A
+    denom = np.maximum(np.sum(AB * AB, axis=-1), _EPS_SEGMENT)
+    s = np.clip(np.sum((P - A) * AB, axis=-1) / denom, 0.0, 1.0)
+    c = A + s[..., None] * AB
+    diff = c - P
+    d = np.linalg.norm(diff, axis=-1)
+    n = diff / np.maximum(d, _EPS_SEGMENT)[..., None]
+    return d, s, n

@@ -17,7 +17,8 @@ from sm2ith_drake.experiments.campaign import (
     RunCampaign,
     RunOne,
 )
-from sm2ith_drake.experiments.metrics import (
+from sm2ith_drake.robots import MobileManipulator
+from sm2ith_drake.run.metrics import (
     INTIMATE_DISTANCE,
     CampaignRow,
     HumanMetrics,
@@ -25,7 +26,6 @@ from sm2ith_drake.experiments.metrics import (
     PolylineDistances,
     Retreat,
 )
-from sm2ith_drake.robots import MobileManipulator
 from sm2ith_drake.scenario import PhaseConfig, Scenario, TaskConfig
 from sm2ith_drake.systems.logger import RunLog
 

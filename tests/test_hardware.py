@@ -197,6 +197,7 @@ def test_wheel_ships_the_messages(tmp_path):
 
 
 def test_messages_round_trip():
+    from sm2ith_drake.humans.messages import HumanDetections
     from sm2ith_drake.lcm.driver import MakeDetectionsMessage
     from sm2ith_drake.lcm.interface import (
         DecodeHumanDetections,
@@ -207,7 +208,6 @@ def test_messages_round_trip():
         MakePlanMessage,
     )
     from sm2ith_drake.lcm.sm2ith_lcmtypes import lcmt_sm2ith_plan
-    from sm2ith_drake.systems.humans import HumanDetections
 
     q, v = np.arange(7) * 0.1, np.arange(6) * -0.2
     utime, q2, v2 = DecodeRobotState(

@@ -4,9 +4,9 @@ weighted-sum baseline, fallbacks, and the RTI against the full NLP."""
 import numpy as np
 import pytest
 
-from sm2ith_drake.control.controller import MpcController
-from sm2ith_drake.diagrams import RunSimulation
+from sm2ith_drake.control.mpc_controller import MpcController
 from sm2ith_drake.resources import GetDiagramsDir
+from sm2ith_drake.run.simulation import RunSimulation
 from sm2ith_drake.scenario_loader import LoadScenario
 
 CONFLICT = GetDiagramsDir() / "conflict.scenarios.yaml"

@@ -6,10 +6,11 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
 from sm2ith_drake.humans.crowd import InitialCrowdState, StepCrowd
+from sm2ith_drake.humans.messages import HumanDetections
 from sm2ith_drake.humans.social_force import social_force_step
 from sm2ith_drake.humans.tracking import HumanTracks
 from sm2ith_drake.scenario import HumanConfig
-from sm2ith_drake.systems.humans import HumanDetections, HumanEstimator, MocapSensor
+from sm2ith_drake.systems.humans import HumanEstimator, MocapSensor
 
 
 def _Walker(t):
@@ -67,7 +68,7 @@ def test_mocap_and_estimator_systems_in_a_diagram():
     from pydrake.common.value import AbstractValue
     from pydrake.systems.framework import LeafSystem
 
-    from sm2ith_drake.humans.predictors import HumanEstimate
+    from sm2ith_drake.humans.messages import HumanEstimate
 
     class Truth(LeafSystem):
         def __init__(self):

@@ -5,12 +5,9 @@ import numpy as np
 import pytest
 
 from sm2ith_drake.humans import orca as O
-from sm2ith_drake.humans.orca import (
-    half_plane_normal_form,
-    orca_half_planes,
-    orca_velocity,
-)
-from sm2ith_drake.humans.orca_kkt import orca_agent_half_planes
+from sm2ith_drake.humans.half_planes import orca_agent_half_planes
+from sm2ith_drake.humans.orca import half_plane_normal_form, orca_half_planes
+from sm2ith_drake.humans.orca_velocity import orca_velocity
 
 
 def test_head_on_pair_by_hand():

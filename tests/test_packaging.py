@@ -59,7 +59,7 @@ def test_wheel_ships_models_and_scenarios(tmp_path):
     code = (
         "from sm2ith_drake.resources import GetModelsDir, GetDiagramsDir\n"
         "from sm2ith_drake.robots import MobileManipulator\n"
-        "from sm2ith_drake.scenario import LoadScenario\n"
+        "from sm2ith_drake.scenario_loader import LoadScenario\n"
         "print(GetModelsDir()); print(GetDiagramsDir())\n"
         "MobileManipulator('stretch3')\n"
         "LoadScenario(filename='diagrams/reach.scenarios.yaml',"

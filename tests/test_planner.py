@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from sm2ith_drake.diagrams import RunSimulation
 from sm2ith_drake.resources import GetDiagramsDir
+from sm2ith_drake.run.simulation import RunSimulation
 from sm2ith_drake.scenario import ScenarioError
 from sm2ith_drake.scenario_loader import LoadScenario
 
@@ -50,7 +50,7 @@ def test_bounded_run_log_keeps_the_latest_window():
     from pydrake.systems.framework import DiagramBuilder
 
     from sm2ith_drake.control.tasks import MakeTask
-    from sm2ith_drake.diagrams import AddControlStack
+    from sm2ith_drake.diagrams.control_stack import AddControlStack
     from sm2ith_drake.scenario_loader import MakeRobot
     from sm2ith_drake.systems.robot import KinematicRobot
 

@@ -5,13 +5,14 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize
 
-from sm2ith_drake.control.controller import MpcController
-from sm2ith_drake.humans.orca_kkt import NearestBodies, orca_agent_half_planes
-from sm2ith_drake.humans.predictors import HumanEstimate
+from sm2ith_drake.control.mpc_controller import MpcController
+from sm2ith_drake.humans.half_planes import orca_agent_half_planes
+from sm2ith_drake.humans.messages import HumanEstimate
 from sm2ith_drake.humans.relaxed_orca import (
     relaxed_orca_action,
     relaxed_orca_actions,
 )
+from sm2ith_drake.humans.robot_view import NearestBodies
 from sm2ith_drake.robots import MobileManipulator
 from sm2ith_drake.scenario import (
     ControllerConfig,
@@ -80,7 +81,10 @@ def test_relaxed_orca_oracle_matches_a_generic_solver():
         ref = _GenericSolve(v_pref, v_t, n, rho, no, rho_o, 1.5, 2.0, 0.2, 10, 100)
         if ref is None:
             continue
-        assert sol.cost <= ref.fun + 1e-7
+        # Relative: SLSQP's own optimum is only as good as its tolerance (it
+        # stopped with 'positive directional derivative' 3e-7 below ours on
+        # one scene with a cost of 11.8).
+        assert sol.cost <= ref.fun + 1e-7 * max(1.0, abs(ref.fun))
         np.testing.assert_allclose(sol.velocity, ref.x[:2], atol=2e-4)
         # KKT: stationarity, dual feasibility, complementarity.
         assert sol.stationarity_residual < 1e-6

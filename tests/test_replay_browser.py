@@ -7,8 +7,8 @@ import subprocess
 import numpy as np
 import pytest
 
-from sm2ith_drake.diagrams import RunSimulation
 from sm2ith_drake.resources import GetDiagramsDir
+from sm2ith_drake.run.simulation import RunSimulation
 from sm2ith_drake.scenario_loader import LoadScenario
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")

@@ -23,8 +23,8 @@ import itertools
 import numpy as np
 import pytest
 
-from sm2ith_drake.diagrams import RunSimulation
 from sm2ith_drake.resources import GetDiagramsDir
+from sm2ith_drake.run.simulation import RunSimulation
 from sm2ith_drake.scenario_loader import LoadScenario
 
 CROSSING = GetDiagramsDir() / "crossing.scenarios.yaml"
@@ -189,7 +189,7 @@ def test_adversarial_human_is_not_hit():
 
 
 def _replay_controller():
-    from sm2ith_drake.control.controller import MpcController
+    from sm2ith_drake.control.mpc_controller import MpcController
     from sm2ith_drake.scenario_loader import MakeRobot
 
     scenario = LoadScenario(
@@ -207,13 +207,13 @@ def _replay_controller():
 
 
 def _Gap0(robot, q, position):
-    from sm2ith_drake.control.cbf import HumanDistances
+    from sm2ith_drake.humans.robot_view import HumanDistances
 
     return HumanDistances(robot, q[None], np.array([[position]]))[0, 0]
 
 
 def test_stale_plan_is_not_replayed_into_a_person():
-    from sm2ith_drake.humans.predictors import HumanEstimate
+    from sm2ith_drake.humans.messages import HumanEstimate
 
     scenario, robot, controller = _replay_controller()
     reach = scenario.safety.human_radius + scenario.safety.human_margin
@@ -259,9 +259,9 @@ def test_stale_plan_is_not_replayed_into_a_person():
 
 
 def test_guard_holds_over_its_steps_against_a_person_who_does_not_yield():
-    from sm2ith_drake.control.cbf import HumanDistances
-    from sm2ith_drake.control.controller import MpcController
-    from sm2ith_drake.humans.predictors import HumanEstimate
+    from sm2ith_drake.control.mpc_controller import MpcController
+    from sm2ith_drake.humans.messages import HumanEstimate
+    from sm2ith_drake.humans.robot_view import HumanDistances
 
     scenario, robot, _ = _replay_controller()
     safety = scenario.safety

@@ -111,7 +111,7 @@ def test_every_shipped_scenario_runs_closed_loop(filename, name):
     """A short closed-loop smoke test of every named scenario."""
     import numpy as np
 
-    from sm2ith_drake.diagrams import RunSimulation
+    from sm2ith_drake.run.simulation import RunSimulation
 
     scenario = LoadScenario(filename=GetDiagramsDir() / filename, scenario_name=name)
     result = RunSimulation(scenario, duration=1.5)

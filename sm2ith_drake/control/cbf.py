@@ -19,41 +19,10 @@ coupled through the ORCA KKT system) for SM²ITH.
 
 import numpy as np
 
-from sm2ith_drake.control.program import ConstraintGroup, _BlockPattern
-from sm2ith_drake.geometry import segment_closest_points
+from sm2ith_drake.control.groups import BlockPattern, ConstraintGroup
+from sm2ith_drake.geometry import point_segment_distance_2d, segment_closest_points
 
 _EPS = 1e-9
-
-
-def point_segment_distance_2d(A, B, P):
-    """Distances from points P to segments A–B in the plane (arrays (..., 2)).
-
-    Returns (d, s, n): the distance, the closest-point parameter on the
-    segment and the unit vector from P to the closest point.
-    """
-    AB = B - A
-    denom = np.maximum(np.sum(AB * AB, axis=-1), _EPS)
-    s = np.clip(np.sum((P - A) * AB, axis=-1) / denom, 0.0, 1.0)
-    c = A + s[..., None] * AB
-    diff = c - P
-    d = np.linalg.norm(diff, axis=-1)
-    n = diff / np.maximum(d, _EPS)[..., None]
-    return d, s, n
-
-
-def HumanDistances(robot, states, human_positions) -> np.ndarray:
-    """(T, H) horizontal distance from each human's centre to the nearest
-    robot body (every capsule's surface: the base and every arm link)."""
-    x = np.asarray(states)
-    P = np.asarray(human_positions, dtype=float)  # (T, H, 2)
-    if P.size == 0:
-        return np.zeros((len(x), 0))
-    kin = robot.CalcKinematics(x[:, : robot.num_positions])
-    ends = kin.capsule_points[..., :2]  # (T, C, 2, 2)
-    d, _, _ = point_segment_distance_2d(
-        ends[:, None, :, 0], ends[:, None, :, 1], P[:, :, None, :]
-    )  # (T, H, C)
-    return np.min(d - robot.capsule_radii[None, None, :], axis=2)
 
 
 def _Lift(x):
@@ -152,7 +121,7 @@ class DtCbfGroup(ConstraintGroup):
         # the best it can instead of losing its plan.
         self.slack = layout.AddVariables("cbf_slack", (self.num_rows,))
         if row_blocks:
-            self.rows, self.cols = _BlockPattern(row_blocks, col_blocks)
+            self.rows, self.cols = BlockPattern(row_blocks, col_blocks)
             self.rows = np.concatenate([self.rows, np.arange(self.num_rows)])
             self.cols = np.concatenate([self.cols, self.slack])
         else:

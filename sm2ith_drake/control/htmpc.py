@@ -26,9 +26,13 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+import piqp
 import scipy.sparse as sp
+from pydrake.autodiffutils import ExtractGradient, ExtractValue, InitializeAutoDiff
+from pydrake.solvers import IpoptSolver, MathematicalProgram, SnoptSolver, SolverOptions
 
-from sm2ith_drake.control.program import ConstraintGroup, MpcProgram
+from sm2ith_drake.control.groups import ConstraintGroup
+from sm2ith_drake.control.program import MpcProgram
 from sm2ith_drake.control.tasks import Task
 
 
@@ -97,7 +101,6 @@ class _Qp:
     """
 
     def __init__(self, *, num_variables, p_pattern, a_pattern, equality_rows, settings):
-        import piqp
 
         self._piqp = piqp
         self.n = num_variables
@@ -370,7 +373,6 @@ class NlpStageSolver:
     def __init__(
         self, program: MpcProgram, stage: Stage, solver_name: str, solver_options
     ):
-        from pydrake.solvers import IpoptSolver, MathematicalProgram, SnoptSolver
 
         self.program = program
         self.stage = stage
@@ -418,11 +420,6 @@ class NlpStageSolver:
         return self._cache["point"]
 
     def _Wrap(self, group):
-        from pydrake.autodiffutils import (
-            ExtractGradient,
-            ExtractValue,
-            InitializeAutoDiff,
-        )
 
         nv = self._nv
 
@@ -438,11 +435,6 @@ class NlpStageSolver:
         return f
 
     def _CostFunction(self, x):
-        from pydrake.autodiffutils import (
-            ExtractGradient,
-            ExtractValue,
-            InitializeAutoDiff,
-        )
 
         autodiff = x.dtype != float
         xv = ExtractValue(x).reshape(-1) if autodiff else x
@@ -501,7 +493,6 @@ class HierarchicalSolver:
         rti_iterations: int = 1,
         rti_proximal_weight: float = 1.0,
     ):
-        from pydrake.solvers import SolverOptions
 
         self.program = program
         self.method = method

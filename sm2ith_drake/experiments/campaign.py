@@ -12,15 +12,20 @@ from __future__ import annotations
 import csv
 import dataclasses
 import math
+import multiprocessing
 import os
 import sys
 import time
 import traceback
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 import numpy as np
 
-from sm2ith_drake.experiments.metrics import CAMPAIGN_METRICS
+from sm2ith_drake.experiments.report import MakePlots, WriteReport
+from sm2ith_drake.run.metrics import CAMPAIGN_METRICS, CampaignRow
+from sm2ith_drake.run.simulation import RunSimulation
+from sm2ith_drake.scenario_loader import LoadScenario
 
 # Columns that identify a run, before the metrics.
 RUN_COLUMNS = [
@@ -281,7 +286,6 @@ def ApplySeed(scenario, seed: int):
 def LoadRunScenario(spec: RunSpec):
     """The Scenario of a run: the cell's scenario, the method's overrides,
     the seed's people."""
-    from sm2ith_drake.scenario_loader import LoadScenario
 
     scenario = LoadScenario(
         filename=spec.scenario_file,
@@ -294,8 +298,6 @@ def LoadRunScenario(spec: RunSpec):
 def _ReferencePath(spec: RunSpec, cache_dir: Path):
     """The base path of the same scenario and controller with no people (the
     "optimal path"), computed once per scenario and method and cached."""
-    from sm2ith_drake.diagrams import RunSimulation
-    from sm2ith_drake.scenario_loader import LoadScenario
 
     key = f"{spec.scenario}__{spec.method}__{spec.duration:g}".replace("/", "_")
     path = cache_dir / f"{key}.npy"
@@ -321,8 +323,6 @@ def _ReferencePath(spec: RunSpec, cache_dir: Path):
 def RunOne(spec: RunSpec, cache_dir: str) -> dict:
     """Runs one campaign run and returns its CSV row. Never raises: a failed
     run returns status "error" with the message."""
-    from sm2ith_drake.diagrams import RunSimulation
-    from sm2ith_drake.experiments.metrics import CampaignRow
 
     row = {k: getattr(spec, k, "") for k in RUN_COLUMNS if hasattr(spec, k)}
     row["run_id"] = spec.run_id
@@ -501,7 +501,6 @@ def RunCampaign(
     wall = time.perf_counter() - start
     wanted = {s.run_id for s in specs}
     rows = [r for r in ReadRows(csv_path) if r["run_id"] in wanted]
-    from sm2ith_drake.experiments.report import MakePlots, WriteReport
 
     plots = MakePlots(study, rows, out)
     report = WriteReport(study, rows, out, plots, wall_time_s=wall, ran=len(todo))
@@ -521,8 +520,6 @@ def _Execute(specs, cache, jobs, executor, address):
         for spec in specs:
             yield RunOne(spec, cache)
         return
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor, as_completed
 
     # "spawn": every worker starts a clean interpreter (no forked solver or
     # Meshcat state).

@@ -6,6 +6,8 @@ import datetime
 import math
 from pathlib import Path
 
+import matplotlib
+import matplotlib.pyplot as plt
 import numpy as np
 
 # One colour per method, in the study's order (colour-blind safe).
@@ -32,10 +34,8 @@ def MakePlots(study, rows, out_dir) -> list[Path]:
     """Writes ``<study>.png``: one panel per Study.panels entry, the number
     of humans on the x axis, one box per method (median line, mean ×),
     laid out like the paper's figures. Returns the written files."""
-    import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     panels = study.panels
     ncols = min(4, len(panels))

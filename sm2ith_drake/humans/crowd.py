@@ -25,6 +25,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sm2ith_drake.humans.half_planes import obstacle_half_planes, orca_agent_half_planes
+from sm2ith_drake.humans.orca_velocity import orca_velocity
+from sm2ith_drake.humans.relaxed_orca import relaxed_orca_action
+from sm2ith_drake.humans.social_force import social_force_step
+
 # A waypoint counts as reached within this distance (m).
 WAYPOINT_TOLERANCE = 0.2
 # An adversarial person stops this far from the robot's bodies (m).
@@ -143,8 +148,6 @@ def StepCrowd(
                 step = min(h.speed, (gap - ADVERSARY_STOP_GAP) / dt)
                 new_v[j] = d / np.linalg.norm(d) * step
         elif h.behavior == "orca":
-            from sm2ith_drake.humans.orca import orca_velocity
-
             others = [i for i in range(H) if i != j]
             # The robot as people see it: its base and, as a second agent,
             # the nearest of its bodies (an arm sticking out is avoided too),
@@ -188,8 +191,6 @@ def StepCrowd(
             )
             preferred[j] = v_pref[j]
     if social:
-        from sm2ith_drake.humans.social_force import social_force_step
-
         # Everyone moves in the model (so the social-force people are pushed
         # by all the others); only their own rows are kept.
         _, sv = social_force_step(
@@ -231,11 +232,6 @@ def _ModelVelocity(
     """Person j's next velocity by the prediction model (humans/orca_kkt.py):
     the relaxed-ORCA QP over the other people's, the robot base's and the
     robot's nearest body's ORCA lines and one line per wall."""
-    from sm2ith_drake.humans.orca_kkt import (
-        obstacle_half_planes,
-        orca_agent_half_planes,
-    )
-    from sm2ith_drake.humans.relaxed_orca import relaxed_orca_action
 
     others = [i for i in range(len(p)) if i != j]
     if robot_bodies is None:

@@ -32,7 +32,9 @@ from pydrake.systems.lcm import (
     LcmSubscriberSystem,
 )
 
-from sm2ith_drake.control.controller import BrakingAcceleration
+from sm2ith_drake.control.cbf import ObstacleSegments
+from sm2ith_drake.control.mpc_controller import BrakingAcceleration
+from sm2ith_drake.humans.messages import HumanDetections
 from sm2ith_drake.lcm.interface import (
     PUBLISH_DELAY,
     CommandMonitor,
@@ -52,7 +54,8 @@ from sm2ith_drake.scenario import (
     HumanConfig,
     PerceptionConfig,
 )
-from sm2ith_drake.systems.humans import HumanDetections
+from sm2ith_drake.systems.humans import CrowdSimulator, MocapSensor
+from sm2ith_drake.systems.robot import KinematicRobot
 
 
 class RobotCommandReceiver(LcmMessageReceiver):
@@ -268,9 +271,6 @@ def MakeDriverDiagram(
         (KinematicRobot), ``command.receiver``, ``command.follower``,
         ``command.monitor`` and (with people) ``crowd`` and ``mocap``.
     """
-    from sm2ith_drake.control.cbf import ObstacleSegments
-    from sm2ith_drake.systems.humans import CrowdSimulator, MocapSensor
-    from sm2ith_drake.systems.robot import KinematicRobot
 
     perception = perception or PerceptionConfig()
     n, m = robot.num_positions, robot.num_velocities

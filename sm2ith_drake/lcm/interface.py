@@ -57,15 +57,19 @@ from pydrake.systems.lcm import (
     LcmSubscriberSystem,
 )
 
-from sm2ith_drake.control.controller import BrakingAcceleration, ControllerState
+from sm2ith_drake.control.mpc_controller import BrakingAcceleration, ControllerState
+from sm2ith_drake.control.tasks import MakeTask
+from sm2ith_drake.diagrams.control_stack import AddControlStack
+from sm2ith_drake.humans.messages import HumanDetections, MpcPlan
 from sm2ith_drake.lcm.sm2ith_lcmtypes import (
     lcmt_sm2ith_human_detections,
     lcmt_sm2ith_plan,
     lcmt_sm2ith_robot_command,
     lcmt_sm2ith_robot_state,
 )
-from sm2ith_drake.scenario import ControlPeriod, HardwareConfig, Scenario
-from sm2ith_drake.systems.humans import HumanDetections
+from sm2ith_drake.scenario import ControlPeriod, HardwareConfig, Scenario, ScenarioError
+from sm2ith_drake.scenario_checks import ValidateScenario
+from sm2ith_drake.scenario_loader import MakeRobot
 
 MODE_CONTROL = lcmt_sm2ith_robot_command.MODE_CONTROL
 MODE_SLOWED = lcmt_sm2ith_robot_command.MODE_SLOWED
@@ -714,11 +718,10 @@ class PlanEncoder(LeafSystem):
 
     def __init__(self, *, time_step: float):
         super().__init__()
-        from sm2ith_drake.systems.controller import PlanMessage
 
         self._time_step = float(time_step)
         self._plan = self.DeclareAbstractInputPort(
-            "plan", AbstractValue.Make(PlanMessage())
+            "plan", AbstractValue.Make(MpcPlan())
         )
         self._ctrl = self.DeclareAbstractInputPort(
             "controller_state", AbstractValue.Make(ControllerState())
@@ -749,7 +752,6 @@ class PlanEncoder(LeafSystem):
 
 def ValidateHardwareConfig(config: HardwareConfig) -> None:
     """Checks the values of ``config``; raises ScenarioError."""
-    from sm2ith_drake.scenario import ScenarioError
 
     for name in ("state", "command", "detections", "plan"):
         if not getattr(config, f"{name}_channel"):
@@ -807,7 +809,6 @@ def MakeHardwareInterface(*, scenario: Scenario, lcm, robot=None):
         ``detections_status`` (ReceiverState) and ``gate_status`` (GateState)
         carry the counters (see :func:`GetHardwareStatus`).
     """
-    from sm2ith_drake.scenario_loader import MakeRobot
 
     h = scenario.hardware
     ValidateHardwareConfig(h)
@@ -948,10 +949,6 @@ def MakeHardwareDiagram(*, scenario: Scenario, lcm, robot=None, tasks=None):
         ``hardware``, ``planner``, ``controller``, ``logger`` and
         ``human_estimator`` (with people).
     """
-    from sm2ith_drake.control.tasks import MakeTask
-    from sm2ith_drake.diagrams import AddControlStack
-    from sm2ith_drake.scenario_checks import ValidateScenario
-    from sm2ith_drake.scenario_loader import MakeRobot
 
     if tasks is None:
         ValidateScenario(scenario)
@@ -1237,7 +1234,6 @@ def RunHardware(
         solve and step times (ms), its counters, the hardware counters, the
         final task errors and why the run ended.
     """
-    from sm2ith_drake.scenario_loader import MakeRobot
 
     robot = MakeRobot(scenario)
     lcm = lcm if lcm is not None else DrakeLcm(scenario.hardware.lcm)

@@ -5,23 +5,14 @@ CrowdSimulator ─human_truth─► MocapSensor ─detections─► HumanEstimat
 """
 
 import copy
-from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
 
 from sm2ith_drake.humans.crowd import InitialCrowdState, StepCrowd
-from sm2ith_drake.humans.predictors import HumanEstimate
-
-
-@dataclass
-class HumanDetections:
-    """One motion-capture frame: the ids seen and their measured positions."""
-
-    time: float = 0.0
-    ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
-    positions: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+from sm2ith_drake.humans.messages import HumanDetections, HumanEstimate
+from sm2ith_drake.humans.tracking import HumanTracks
 
 
 class CrowdSimulator(LeafSystem):
@@ -179,7 +170,6 @@ class HumanEstimator(LeafSystem):
         track_timeout: float,
     ):
         super().__init__()
-        from sm2ith_drake.humans.tracking import HumanTracks
 
         self._make_tracks = lambda: HumanTracks(
             measurement_noise=max(measurement_noise, 1e-3),

@@ -8,8 +8,9 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
 
-from sm2ith_drake.control.controller import ControllerState
-from sm2ith_drake.systems.planner import TaskReferences
+from sm2ith_drake.control.mpc_controller import ControllerState
+from sm2ith_drake.humans.messages import HumanEstimate
+from sm2ith_drake.planning.sequence import TaskReferences
 
 
 @dataclass
@@ -78,8 +79,6 @@ class RunLogger(LeafSystem):
         )
         self._humans = None
         if with_humans:
-            from sm2ith_drake.humans.predictors import HumanEstimate
-
             self._humans = self.DeclareAbstractInputPort(
                 "human_truth", AbstractValue.Make(HumanEstimate())
             )

@@ -1,33 +1,16 @@
-"""TaskPlanner: emits the task references and the priority order, and runs
-task sequences (pick-and-place…)."""
-
-from dataclasses import dataclass, field
+"""TaskPlanner: emits the task references and runs task sequences
+(planning/sequence.py)."""
 
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
 
-
-@dataclass
-class TaskReferences:
-    """Targets by task name, the task names in priority order, and where the
-    task sequence is."""
-
-    targets: dict = field(default_factory=dict)
-    priority: list = field(default_factory=list)
-    phase_index: int = 0
-    phase: str = ""
-    # True once the last phase of a sequence has been completed.
-    finished: bool = False
-
-
-@dataclass
-class SequenceState:
-    phase_index: int = 0
-    # When the done_when tasks entered their tolerance (None: not inside).
-    inside_since: float | None = None
-    # Completion time of each finished phase.
-    completed_at: list = field(default_factory=list)
+from sm2ith_drake.planning.sequence import (
+    AdvanceSequence,
+    PhaseTargets,
+    SequenceState,
+    TaskReferences,
+)
 
 
 class TaskPlanner(LeafSystem):
@@ -54,7 +37,6 @@ class TaskPlanner(LeafSystem):
         super().__init__()
         self._tasks = {t.name: t for t in tasks}
         self._base = {t.name: np.asarray(t.target, dtype=float) for t in tasks}
-        self._priority = [t.name for t in tasks]
         self._sequence = list(sequence)
         if self._sequence and robot is None:
             raise ValueError("a task sequence needs the robot to measure progress")
@@ -71,11 +53,7 @@ class TaskPlanner(LeafSystem):
         )
 
     def _Targets(self, index):
-        targets = dict(self._base)
-        for phase in self._sequence[: index + 1]:
-            for name, value in phase.targets.items():
-                targets[name] = np.asarray(value, dtype=float)
-        return targets
+        return PhaseTargets(self._base, self._sequence, index)
 
     def _Advance(self, context, state):
         seq = context.get_abstract_state(self._state).get_value()
@@ -91,16 +69,9 @@ class TaskPlanner(LeafSystem):
         for name in names:
             e, _ = self._tasks[name].CalcErrorAndJacobian(q, kin, targets[name])
             inside &= bool(np.linalg.norm(np.asarray(e)[0]) <= phase.tolerance)
-        t = context.get_time()
-        new = SequenceState(seq.phase_index, seq.inside_since, list(seq.completed_at))
-        if not inside:
-            new.inside_since = None
-        elif new.inside_since is None:
-            new.inside_since = t
-        if new.inside_since is not None and t - new.inside_since >= phase.hold_time:
-            new.completed_at.append(t)
-            new.phase_index += 1
-            new.inside_since = None
+        new = AdvanceSequence(
+            seq, self._sequence, time=context.get_time(), inside=inside
+        )
         state.get_mutable_abstract_state(self._state).set_value(new)
 
     def GetSequenceState(self, context) -> SequenceState:
@@ -113,7 +84,6 @@ class TaskPlanner(LeafSystem):
         output.set_value(
             TaskReferences(
                 targets=self._Targets(index) if count else dict(self._base),
-                priority=list(self._priority),
                 phase_index=seq.phase_index,
                 phase=self._sequence[index].name if count else "",
                 finished=bool(count) and seq.phase_index >= count,

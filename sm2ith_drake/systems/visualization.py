@@ -9,8 +9,8 @@ from pydrake.geometry import Box, Cylinder, Rgba, Sphere
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.framework import LeafSystem
 
-from sm2ith_drake.systems.controller import PlanMessage
-from sm2ith_drake.systems.planner import TaskReferences
+from sm2ith_drake.humans.messages import HumanEstimate, MpcPlan
+from sm2ith_drake.planning.sequence import TaskReferences
 
 ORANGE = Rgba(1.0, 0.55, 0.0, 1.0)
 BLUE = Rgba(0.1, 0.35, 1.0, 1.0)
@@ -40,7 +40,7 @@ class PlanVisualizer(LeafSystem):
         self._N = horizon
         self._prefix = prefix
         self._plan = self.DeclareAbstractInputPort(
-            "plan", AbstractValue.Make(PlanMessage())
+            "plan", AbstractValue.Make(MpcPlan())
         )
         self._refs = self.DeclareAbstractInputPort(
             "task_references", AbstractValue.Make(TaskReferences())
@@ -126,7 +126,6 @@ class HumanVisualizer(LeafSystem):
         prefix: str = "sm2ith",
     ):
         super().__init__()
-        from sm2ith_drake.humans.predictors import HumanEstimate
 
         self._meshcat = meshcat
         self._prefix = prefix
@@ -136,7 +135,7 @@ class HumanVisualizer(LeafSystem):
             "human_truth", AbstractValue.Make(HumanEstimate())
         )
         self._plan = self.DeclareAbstractInputPort(
-            "plan", AbstractValue.Make(PlanMessage())
+            "plan", AbstractValue.Make(MpcPlan())
         )
         for j, h in enumerate(humans):
             meshcat.SetObject(

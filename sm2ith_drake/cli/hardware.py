@@ -2,21 +2,32 @@
 
 from __future__ import annotations
 
+import ipaddress
 import json
 import sys
 from pathlib import Path
+from urllib.parse import urlsplit
+
+from pydrake.lcm import DrakeLcm
+
+from sm2ith_drake.errors import UserError
+from sm2ith_drake.lcm.driver import RunDriver, ScriptedWalkers
+from sm2ith_drake.lcm.interface import (
+    MakeHardwareDiagram,
+    RunHardware,
+    ValidateHardwareConfig,
+)
+from sm2ith_drake.robots import MODELS, MobileManipulator
+from sm2ith_drake.scenario import ControlPeriod, Scenario, ScenarioError
+from sm2ith_drake.scenario_loader import LoadScenarioAndRobot
 
 
 def _UserError(message):
-    from sm2ith_drake.errors import UserError
 
     return UserError(message)
 
 
 def _LoadScenario(filename: str, name: str, text: str = "{}"):
-    from sm2ith_drake.lcm.interface import ValidateHardwareConfig
-    from sm2ith_drake.scenario import ScenarioError
-    from sm2ith_drake.scenario_loader import LoadScenarioAndRobot
 
     try:
         scenario, robot = LoadScenarioAndRobot(
@@ -42,8 +53,6 @@ _LCM_PROVIDERS = ("udpm", "mpudpm", "memq", "file", "tcpq")
 def CheckLcmUrl(url: str) -> None:
     """Raises UserError for a URL that LCM cannot open (DrakeLcm only prints
     an error and then silently drops every message). Opens nothing."""
-    import ipaddress
-    from urllib.parse import urlsplit
 
     if not url:
         return  # LCM's default ($LCM_DEFAULT_URL or its udpm default)
@@ -65,7 +74,6 @@ def CheckLcmUrl(url: str) -> None:
 
 
 def _MakeLcm(params, url: str | None):
-    from pydrake.lcm import DrakeLcm
 
     if url is not None:
         params.lcm_url = url
@@ -88,7 +96,6 @@ def _Ms(stats, key="median") -> str:
 
 
 def _Hardware(args) -> int:
-    from sm2ith_drake.lcm.interface import MakeHardwareDiagram, RunHardware
 
     scenario, robot = _LoadScenario(args.file, args.scenario, args.scenario_text)
     if args.duration is not None and args.duration <= 0:
@@ -148,10 +155,6 @@ def _ParseFloats(text: str, option: str) -> list[float]:
 
 
 def _Driver(args) -> int:
-    from sm2ith_drake.lcm.driver import RunDriver, ScriptedWalkers
-    from sm2ith_drake.lcm.interface import ValidateHardwareConfig
-    from sm2ith_drake.robots import MobileManipulator
-    from sm2ith_drake.scenario import ControlPeriod, Scenario, ScenarioError
 
     if args.scenario:
         scenario, robot = _LoadScenario(*_SplitScenarioRef(args.scenario, "--scenario"))
@@ -222,7 +225,6 @@ def _Driver(args) -> int:
 
 def AddHardwareCommands(sub) -> None:
     """Registers ``hardware`` and ``driver`` on the ``sm2ith`` parser."""
-    from sm2ith_drake.robots import MODELS
 
     hw = sub.add_parser(
         "hardware",

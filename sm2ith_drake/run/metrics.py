@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from sm2ith_drake.geometry import point_segment_distance_2d
+from sm2ith_drake.humans.robot_view import HumanDistances
+
 # Tolerance for calling a state a limit violation (numerical noise).
 _LIMIT_TOL = 1e-6
 
@@ -26,9 +29,6 @@ def LimitViolations(log, robot) -> int:
 
 # Hall's intimate space: 0.45 m from a human's centre (Section V).
 INTIMATE_DISTANCE = 0.45
-
-# Re-exported: the metrics measure with the controller's own geometry.
-from sm2ith_drake.control.cbf import HumanDistances  # noqa: E402, F401
 
 
 def HumanMetrics(log, robot, human_radii) -> dict:
@@ -98,7 +98,6 @@ def FormatMetrics(metrics: dict) -> str:
 def PolylineDistances(points, polyline) -> np.ndarray:
     """Distance from each 2D point (T, 2) to the polyline (K, 2) (a single
     vertex counts as a point)."""
-    from sm2ith_drake.control.cbf import point_segment_distance_2d
 
     P = np.asarray(points, dtype=float).reshape(-1, 2)
     L = np.asarray(polyline, dtype=float).reshape(-1, 2)

@@ -13,41 +13,12 @@ constraint is active.
 - :class:`OrcaKkt` (``humans/orca_kkt.py``): SM²ITH's interactive model.
 """
 
-from dataclasses import dataclass, field
-
 import numpy as np
+
+from sm2ith_drake.humans.messages import HumanEstimate
 
 # Where empty human slots are parked (m): far from anything, finite.
 PARKED = np.array([1.0e3, 1.0e3])
-
-
-@dataclass
-class HumanEstimate:
-    """The tracked humans at one instant (from the estimator or the truth)."""
-
-    ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
-    positions: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
-    velocities: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
-    # Known preferred velocities (intents), NaN where unknown. Only the
-    # simulation's ground truth knows them, for people who walk as the
-    # prediction model says (crowd behaviour "relaxed_orca"); None: unknown.
-    preferred_velocities: np.ndarray | None = None
-
-    def __post_init__(self):
-        self.ids = np.asarray(self.ids, dtype=int).reshape(-1)
-        self.positions = np.asarray(self.positions, dtype=float).reshape(-1, 2)
-        self.velocities = np.asarray(self.velocities, dtype=float).reshape(-1, 2)
-        if self.preferred_velocities is not None:
-            self.preferred_velocities = np.asarray(
-                self.preferred_velocities, dtype=float
-            ).reshape(-1, 2)
-        lengths = {len(self.ids), len(self.positions), len(self.velocities)}
-        if self.preferred_velocities is not None:
-            lengths.add(len(self.preferred_velocities))
-        if len(lengths) != 1:
-            raise ValueError(
-                "HumanEstimate: ids, positions, velocities differ in length"
-            )
 
 
 class Predictor:
@@ -157,31 +128,3 @@ class Cvmm(Predictor):
     def Model(self) -> np.ndarray:
         k = np.arange(self.N + 1)[:, None, None] * self.dt
         return self.p0[None] + k * self.v0[None]
-
-
-def MakePredictor(
-    config,
-    *,
-    horizon: int,
-    time_step: float,
-    robot=None,
-    obstacles=(),
-    human_radius: float = 0.3,
-):
-    """The predictor named by ``config.predictor``."""
-    if config.predictor == "react":
-        return React(config, horizon=horizon, time_step=time_step)
-    if config.predictor == "cvmm":
-        return Cvmm(config, horizon=horizon, time_step=time_step)
-    if config.predictor == "orca_kkt":
-        from sm2ith_drake.humans.orca_kkt import OrcaKkt
-
-        return OrcaKkt(
-            config,
-            horizon=horizon,
-            time_step=time_step,
-            robot=robot,
-            obstacles=obstacles,
-            human_radius=human_radius,
-        )
-    raise ValueError(f"unknown predictor '{config.predictor}'")

@@ -4,15 +4,17 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from sm2ith_drake.cli.run import RunCommand
+from sm2ith_drake.errors import UserError
+from sm2ith_drake.experiments.campaign import STUDIES, ReadRows, RunCampaign
+
 
 def _UserError(message):
-    from sm2ith_drake.errors import UserError
 
     return UserError(message)
 
 
 def _Experiment(args) -> int:
-    from sm2ith_drake.experiments.campaign import STUDIES, RunCampaign
 
     if args.study not in STUDIES:
         raise _UserError(
@@ -52,8 +54,6 @@ def _Experiment(args) -> int:
 
 
 def _Replay(args) -> int:
-    from sm2ith_drake.cli import _Run
-    from sm2ith_drake.experiments.campaign import ReadRows
 
     csv_path = Path(args.csv)
     if not csv_path.exists():
@@ -78,12 +78,11 @@ def _Replay(args) -> int:
     args.duration = duration if duration > 0 else None
     args.graphviz = None
     args.stop_when_done = True
-    return _Run(args)
+    return RunCommand(args)
 
 
 def AddExperimentCommands(sub) -> None:
     """Registers ``experiment`` and ``replay`` on the ``sm2ith`` parser."""
-    from sm2ith_drake.experiments.campaign import STUDIES
 
     exp = sub.add_parser(
         "experiment",

@@ -15,10 +15,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sm2ith_drake.control.cbf import HumanDistances
+from sm2ith_drake.control.cbf import ObstacleSegments
 from sm2ith_drake.control.htmpc import HierarchicalSolver, MpcSolution
+from sm2ith_drake.control.prediction.factory import MakePredictor
+from sm2ith_drake.control.prediction.orca_kkt import PredictionConsistency
 from sm2ith_drake.control.program import MpcProgram
 from sm2ith_drake.control.tasks import MakeTask
+from sm2ith_drake.humans.robot_view import HumanDistances
 from sm2ith_drake.scenario import ControllerConfig, ControlPeriod, SafetyConfig
 
 # A replayed plan is consistent while the measured ν is this close (per
@@ -98,8 +101,6 @@ class MpcController:
         """``prediction`` (a PredictionConfig) adds ``max_humans`` human slots
         with its predictor and the DT-CBF constraints of ``safety``;
         ``obstacles`` (ObstacleConfigs) add static DT-CBF constraints."""
-        from sm2ith_drake.control.cbf import ObstacleSegments
-        from sm2ith_drake.humans.predictors import MakePredictor
 
         self.robot = robot
         self.config = config
@@ -257,8 +258,6 @@ class MpcController:
             and self.predictor is not None
             and self.predictor.name == "orca_kkt"
         ):
-            from sm2ith_drake.humans.orca_kkt import PredictionConsistency
-
             record.prediction_errors = PredictionConsistency(
                 self.predictor, solution.z, self.program.layout
             ).ravel()

@@ -2,23 +2,14 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
 
-from sm2ith_drake.control.controller import ControllerState, MpcController
+from sm2ith_drake.control.mpc_controller import ControllerState, MpcController
+from sm2ith_drake.humans.messages import HumanEstimate, MpcPlan
+from sm2ith_drake.planning.sequence import TaskReferences
 from sm2ith_drake.scenario import ControllerConfig
-from sm2ith_drake.systems.planner import TaskReferences
-
-
-@dataclass
-class PlanMessage:
-    """The ``plan`` output: the latest MpcSolution, or None before the first
-    successful solve."""
-
-    solution: object = None
 
 
 class HierarchicalMpc(LeafSystem):
@@ -41,7 +32,7 @@ class HierarchicalMpc(LeafSystem):
         - controller_state
 
     ``robot_state`` is [q; ν]; ``command`` is [u = ν̇; ν_cmd]; ``plan`` is a
-    PlanMessage; ``controller_state`` the whole
+    MpcPlan; ``controller_state`` the whole
     ControllerState (counters and the last StepRecord).
     """
 
@@ -73,8 +64,6 @@ class HierarchicalMpc(LeafSystem):
         )
         self._humans = None
         if prediction is not None:
-            from sm2ith_drake.humans.predictors import HumanEstimate
-
             self._humans = self.DeclareAbstractInputPort(
                 "human_estimate", AbstractValue.Make(HumanEstimate())
             )
@@ -86,7 +75,7 @@ class HierarchicalMpc(LeafSystem):
         )
         self.DeclareVectorOutputPort("command", 2 * self._m, self._CalcCommand)
         self.DeclareAbstractOutputPort(
-            "plan", lambda: AbstractValue.Make(PlanMessage()), self._CalcPlan
+            "plan", lambda: AbstractValue.Make(MpcPlan()), self._CalcPlan
         )
         self.DeclareAbstractOutputPort(
             "controller_state",
@@ -116,7 +105,7 @@ class HierarchicalMpc(LeafSystem):
         output.SetFromVector(np.concatenate([s.command_u, s.command_nu]))
 
     def _CalcPlan(self, context, output):
-        output.set_value(PlanMessage(self._Get(context).last_solution))
+        output.set_value(MpcPlan(self._Get(context).last_solution))
 
     def _CalcControllerState(self, context, output):
         output.set_value(self._Get(context))

@@ -1,0 +1,5 @@
+import sys
+
+from sm2ith_drake.cli.main import main
+
+sys.exit(main())

@@ -1,0 +1,67 @@
+"""``sm2ith bench``: measure the controller's speed."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from sm2ith_drake.run.bench import RunBenchmark
+
+
+def _Bench(args) -> int:
+    robots = ["ridgeback_ur10", "stretch3"] if args.robot == "all" else [args.robot]
+    results = []
+    for robot in robots:
+        r = RunBenchmark(
+            robot=robot,
+            humans=args.humans,
+            predictor=args.predictor,
+            steps=args.steps,
+            solver=args.solver,
+            rti_iterations=args.rti_iterations,
+            scenario_text=args.scenario_text,
+        )
+        results.append(r)
+        iters = r["mean_iterations"]
+        iters = "n/a" if iters is None else f"{iters:.1f}"
+        print(
+            f"{robot:15s} solver={r['solver']} steps={r['steps']}  "
+            f"median {r['median_ms']:.1f} ms  p95 {r['p95_ms']:.1f} ms  "
+            f"max {r['max_ms']:.1f} ms  mean iterations {iters}  "
+            f"failures {r['solver_failures']}  fallbacks {r['fallbacks']}"
+        )
+    if args.json:
+        Path(args.json).write_text(
+            json.dumps(results[0] if len(results) == 1 else results, indent=2)
+        )
+        print(f"wrote {args.json}")
+    return 0
+
+
+def AddBenchCommand(sub) -> None:
+    bench = sub.add_parser("bench", help="measure the controller's speed")
+    bench.add_argument(
+        "--robot",
+        default="ridgeback_ur10",
+        choices=["ridgeback_ur10", "stretch3", "all"],
+    )
+    bench.add_argument("--humans", type=int, default=0)
+    bench.add_argument(
+        "--predictor", default="orca_kkt", choices=["orca_kkt", "cvmm", "react"]
+    )
+    bench.add_argument("--steps", type=int, default=100)
+    bench.add_argument("--solver", default="rti", choices=["rti", "snopt", "ipopt"])
+    bench.add_argument(
+        "--rti_iterations",
+        type=int,
+        default=None,
+        help="SQP passes per step (default: 1; 2 with orca_kkt)",
+    )
+    bench.add_argument(
+        "--scenario_text",
+        default="",
+        help="YAML applied on top of the benchmark scenario, e.g. "
+        "'{prediction: {max_neighbors: 9}}'",
+    )
+    bench.add_argument("--json", default=None, help="write the figures as JSON")
+    bench.set_defaults(func=_Bench)

@@ -1,0 +1,85 @@
+"""The MPC program's building blocks: the decision-variable layout, the
+linearization point, and constraint groups with fixed sparsity patterns.
+
+The program is described once, as groups of vector-valued functions with a
+fixed sparsity pattern: each group evaluates its values g(z̄) and the
+nonzeros of ∂g/∂z at a point z̄. The stage solvers consume that description
+(the real-time iteration linearizes every group and solves sparse QPs; the
+nonlinear path hands the same functions and Jacobians to SNOPT or IPOPT).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+class VariableLayout:
+    """Indices of the decision variables in the flat vector z."""
+
+    def __init__(self, *, num_positions: int, num_velocities: int, horizon: int):
+        n, m, N = num_positions, num_velocities, horizon
+        self.n, self.m, self.N = n, m, N
+        self.num_variables = 0
+        self.q = self.AddVariables("q", (N + 1, n))
+        self.nu = self.AddVariables("nu", (N + 1, m))
+        self.u = self.AddVariables("u", (N, m))
+        self.robot_variables = self.num_variables
+
+    def AddVariables(self, name: str, shape: tuple[int, ...]) -> np.ndarray:
+        """Appends variables to z; returns their indices with the given shape."""
+        count = int(np.prod(shape))
+        idx = np.arange(self.num_variables, self.num_variables + count).reshape(shape)
+        self.num_variables += count
+        return idx
+
+    def Split(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        return z[self.q], z[self.nu], z[self.u]
+
+
+@dataclass
+class LinearizationPoint:
+    """A point z̄ with everything the groups need, computed once per point."""
+
+    z: np.ndarray
+    q: np.ndarray  # (N+1, n)
+    nu: np.ndarray  # (N+1, m)
+    u: np.ndarray  # (N, m)
+    kin: object  # robot.CalcKinematics(q)
+    # Task targets by task name: (s,) or per step (N+1, s).
+    targets: dict = field(default_factory=dict)
+    # Memo of task evaluations (name → (e, J)), filled lazily.
+    task_cache: dict = field(default_factory=dict)
+
+
+class ConstraintGroup:
+    """lower ≤ g(z) ≤ upper with a fixed Jacobian sparsity pattern.
+
+    Subclasses set ``num_rows``, ``rows`` and ``cols`` (the nonzeros of ∂g/∂z,
+    local row index and global column index) and implement :meth:`Eval`.
+    """
+
+    name = "group"
+    num_rows: int
+    rows: np.ndarray
+    cols: np.ndarray
+
+    def Eval(self, point: LinearizationPoint) -> tuple[np.ndarray, np.ndarray]:
+        """Returns g(z̄) (num_rows,) and the Jacobian nonzeros (nnz,)."""
+        raise NotImplementedError
+
+    def DenseJacobian(self, values: np.ndarray, num_variables: int) -> np.ndarray:
+        J = np.zeros((self.num_rows, num_variables))
+        np.add.at(J, (self.rows, self.cols), values)
+        return J
+
+
+def BlockPattern(row_blocks, col_blocks):
+    """Pattern of dense blocks: row_blocks[i] × col_blocks[i] (index arrays)."""
+    rows, cols = [], []
+    for r, c in zip(row_blocks, col_blocks, strict=True):
+        rr, cc = np.meshgrid(r, c, indexing="ij")
+        rows.append(rr.ravel())
+        cols.append(cc.ravel())
+    return np.concatenate(rows), np.concatenate(cols)

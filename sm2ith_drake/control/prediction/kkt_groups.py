@@ -1,0 +1,310 @@
+"""The ORCA-KKT constraint groups of SM²ITH (eq. smith): stationarity,
+primal feasibility, relaxed complementarity and the human dynamics of every
+human's relaxed-ORCA QP, as ConstraintGroups with fixed patterns.
+"""
+
+import numpy as np
+
+from sm2ith_drake.control.groups import BlockPattern, ConstraintGroup
+
+
+def KktTerms(pred, z, v, n, rho, no, rho_o):
+    """Stationarity in a, primal constraints c and λ·c at z (module doc)."""
+    cfg = pred.config
+    a = z[pred.a]  # (N, H, 2)
+    lam = z[pred.lam]  # (N, H, R)
+    A = pred.A
+    lam_s, lam_a = lam[..., 0], lam[..., 1]
+    lam_i, lam_o = lam[..., 2 : 2 + A], lam[..., 2 + A :]
+    stat = (
+        2 * (a - pred.v_pref[None])
+        + 2 * lam_s[..., None] * a
+        + 2 * lam_a[..., None] * (a - v)
+        - np.einsum("khi,khid->khd", lam_i, n)
+        - np.einsum("kho,khod->khd", lam_o, no)
+    )
+    c_s = np.sum(a * a, axis=-1) - cfg.max_speed**2
+    c_a = (
+        np.sum((a - v) ** 2, axis=-1)
+        - (pred.dt * cfg.max_acceleration) ** 2
+        - lam_a / (2 * cfg.slack_weight_acceleration)
+    )
+    c_i = (
+        rho - np.einsum("khid,khd->khi", n, a) - lam_i / (2 * cfg.slack_weight_velocity)
+    )
+    c_o = rho_o - np.einsum("khod,khd->kho", no, a)
+    c = np.concatenate([c_s[..., None], c_a[..., None], c_i, c_o], axis=-1)
+    return stat, c, lam * c
+
+
+class KktBlocks:
+    """The local columns of every (k, j) block, shared by both KKT groups,
+    and the derivatives at a point (computed once per point).
+
+    Local columns of block (k, j): a (2), λ (R), then the state: own p (2),
+    own v (2), each human neighbour's p and v (4 each), the robot's
+    configuration q_k (n: the base through the base line, every joint
+    through the nearest-body line) and base velocities ν_base (nb). A column
+    whose value is a constant of the step (v_0 of every human) maps to −1
+    and is dropped."""
+
+    def __init__(self, pred, layout):
+        self.pred = pred
+        self.layout = layout
+        self.R = pred.R
+        self.n = pred.robot.num_positions
+        self.nb = 3 if pred.robot.base_kind == "holonomic" else 2
+        self.ilam = 2
+        self.io = 2 + self.R  # own p, then own v
+        self.inb = self.io + 4  # neighbour i: inb + 4i … inb + 4i + 3
+        self.iq = self.inb + 4 * pred.K
+        self.inu = self.iq + self.n
+        self.width = self.inu + self.nb
+        self.groups = []
+        self._cache = {"key": None}
+        self.columns = self._Columns()
+
+    def _Columns(self):
+        """(N, H, width) global column of every local column (−1: constant)."""
+        pred, layout = self.pred, self.layout
+        N, H, K = pred.N, pred.H, pred.K
+        C = np.full((N, H, self.width), -1, dtype=int)
+        C[:, :, 0:2] = pred.a
+        C[:, :, self.ilam : self.ilam + self.R] = pred.lam
+        C[:, :, self.io : self.io + 2] = pred.p[:-1]
+        C[1:, :, self.io + 2 : self.io + 4] = pred.a[:-1]
+        for i in range(K if pred.config.neighbor_derivatives else 0):
+            other = pred.neighbors[:, i]
+            c0 = self.inb + 4 * i
+            C[:, :, c0 : c0 + 2] = pred.p[:-1][:, other]
+            C[1:, :, c0 + 2 : c0 + 4] = pred.a[:-1][:, other]
+        C[:, :, self.iq : self.inu] = np.asarray(layout.q)[:-1, None, :]
+        C[:, :, self.inu :] = np.asarray(layout.nu)[:-1, None, : self.nb]
+        return C
+
+    def UpdatePattern(self):
+        """After the neighbour sets changed: new columns, new patterns."""
+        self.columns = self._Columns()
+        self._cache = {"key": None}
+        for group in self.groups:
+            group.UpdatePattern()
+
+    def Pattern(self, mask, rows_per_block, row_offset=0):
+        """The structural nonzeros of ``mask`` (rows, width) in every block:
+        (rows, cols, gather) with ``gather`` the flat index of each value in
+        a dense (N, H, rows, width) array of local Jacobians."""
+        N, H = self.pred.N, self.pred.H
+        rr, cc = np.nonzero(mask)
+        cols = self.columns[:, :, cc]  # (N, H, nnz)
+        block = np.arange(N * H).reshape(N, H)[..., None]
+        rows = row_offset + block * rows_per_block + rr
+        gather = (block * rows_per_block + rr) * self.width + cc
+        keep = cols >= 0
+        return rows[keep], cols[keep], gather[keep]
+
+    def StateDerivatives(self, J, rows, dX_own, dX_other, e):
+        """Adds the derivatives of local rows w.r.t. the state to J.
+
+        dX_own (N, H, r, 4): w.r.t. the own (p, v); dX_other (N, H, r, A, 4):
+        through line i w.r.t. its other agent's (p, v). The robot's lines are
+        the last two: the base's position is (x, y) of q and the nearest
+        body's point moves with q and with the person's position
+        (NearestBodies); both move with the base's world velocity G(q)ν,
+        which depends on θ and ν_base."""
+        pred, K = self.pred, self.pred.K
+        J[:, :, rows, self.io : self.io + 4] += dX_own
+        J[:, :, rows, self.inb : self.iq] += dX_other[..., :K, :].reshape(
+            dX_other.shape[:3] + (4 * K,)
+        )
+        base, body = dX_other[..., K, :], dX_other[..., K + 1, :]  # (N,H,r,4)
+        nearest = e["body"]
+        J[:, :, rows, self.iq : self.iq + 2] += base[..., 0:2]
+        J[:, :, rows, self.iq : self.inu] += np.einsum(
+            "khri,khin->khrn", body[..., 0:2], nearest.d_dq
+        )
+        J[:, :, rows, self.io : self.io + 2] += np.einsum(
+            "khri,khij->khrj", body[..., 0:2], nearest.d_dp
+        )
+        drv = base[..., 2:4] + body[..., 2:4]  # w.r.t. the base's velocity
+        q, nu = e["robot"].q, e["robot"].nu
+        for k in range(pred.N):
+            G = pred.robot.G(q[k])[:2, : self.nb]
+            dth = pred.robot.dGnu_dq(q[k], nu[k])[:2, 2]
+            J[k, :, rows, self.iq + 2] += drv[k] @ dth
+            J[k, :, rows, self.inu :] += drv[k] @ G
+
+    def Evaluate(self, point):
+        """Everything both groups need at a point, cached by the point."""
+        if self._cache["key"] is point:
+            return self._cache
+        pred, layout = self.pred, self.layout
+        z = point.z
+        p = z[pred.p[:-1]]
+        v = pred._HumanVelocities(z)
+        robot = pred._RobotView(z, layout, point.kin)
+        (n, rho, no, rho_o), (dn, drho, dno, drho_o), body = pred.HalfPlaneDerivatives(
+            p, v, robot
+        )
+        stat, c, lc = KktTerms(pred, z, v, n, rho, no, rho_o)
+        self._cache = dict(
+            key=point,
+            v=v,
+            n=n,
+            rho=rho,
+            no=no,
+            rho_o=rho_o,
+            dn=dn,
+            drho=drho,
+            dno=dno,
+            drho_o=drho_o,
+            stat=stat,
+            c=c,
+            lc=lc,
+            robot=robot,
+            body=body,
+        )
+        return self._cache
+
+
+class KktEqualities(ConstraintGroup):
+    """Stationarity in a of every human's QP and the human dynamics (= 0)."""
+
+    name = "orca_kkt_equalities"
+
+    def __init__(self, pred, blocks):
+        self.pred = pred
+        self.blocks = blocks
+        N, H = pred.N, pred.H
+        self.num_kkt = N * H * 2
+        self.num_rows = self.num_kkt + N * H * 2
+        b = blocks
+        # Stationarity depends on a, every λ and the whole local state.
+        self.mask = np.ones((2, b.width), dtype=bool)
+        row_blocks, col_blocks = [], []
+        for k in range(N):
+            for j in range(H):
+                row_blocks.append(self.num_kkt + (k * H + j) * 2 + np.arange(2))
+                col_blocks.append(
+                    np.concatenate([pred.p[k + 1, j], pred.p[k, j], pred.a[k, j]])
+                )
+        self._dyn_rows, self._dyn_cols = BlockPattern(row_blocks, col_blocks)
+        blocks.groups.append(self)
+        self.UpdatePattern()
+
+    def UpdatePattern(self):
+        rows, cols, self._gather = self.blocks.Pattern(self.mask, 2)
+        self.rows = np.concatenate([rows, self._dyn_rows])
+        self.cols = np.concatenate([cols, self._dyn_cols])
+
+    def Eval(self, point):
+        pred, b = self.pred, self.blocks
+        e = b.Evaluate(point)
+        z = point.z
+        N, H, A, R = pred.N, pred.H, pred.A, b.R
+        a, lam = z[pred.a], z[pred.lam]
+        v = e["v"]
+        J = np.zeros((N, H, 2, b.width))
+        eye = np.eye(2)
+        J[:, :, :, 0:2] = (2 + 2 * lam[..., 0] + 2 * lam[..., 1])[..., None, None] * eye
+        il = b.ilam
+        J[:, :, :, il] = 2 * a
+        J[:, :, :, il + 1] = 2 * (a - v)
+        J[:, :, :, il + 2 : il + 2 + A] = -np.swapaxes(e["n"], -1, -2)
+        J[:, :, :, il + 2 + A : il + R] = -np.swapaxes(e["no"], -1, -2)
+        # −Σ λ_i ∂n_i/∂x − Σ λ_o ∂n_o/∂x, and −2λ_a ∂v/∂v_own.
+        lam_i = lam[..., 2 : 2 + A]
+        dn = e["dn"]  # (N, H, A, 2, 8)
+        dX_own = -np.einsum("khi,khidx->khdx", lam_i, dn[..., :4])
+        dX_own[..., 0:2] -= np.einsum("kho,khodx->khdx", lam[..., 2 + A :], e["dno"])
+        dX_own[..., 2:4] -= 2 * lam[..., 1, None, None] * eye
+        dX_other = -np.einsum("khi,khidx->khdix", lam_i, dn[..., 4:])
+        b.StateDerivatives(J, slice(0, 2), dX_own, dX_other, e)
+        # Dynamics p_{k+1} − p_k − Δt a_k.
+        p = z[pred.p]
+        g_dyn = p[1:] - p[:-1] - pred.dt * a
+        block = np.concatenate([eye, -eye, -pred.dt * eye], axis=1)  # (2, 6)
+        vals_dyn = np.broadcast_to(block, (N, H, 2, 6)).reshape(-1)
+        g = np.concatenate([e["stat"].reshape(-1), g_dyn.reshape(-1)])
+        return g, np.concatenate([J.reshape(-1)[self._gather], vals_dyn])
+
+
+class KktInequalities(ConstraintGroup):
+    """Primal feasibility c ≤ 0 and relaxed complementarity λ·c ≥ −ε of
+    every human's QP (dual feasibility λ ≥ 0 is a bound)."""
+
+    name = "orca_kkt_inequalities"
+
+    def __init__(self, pred, blocks):
+        self.pred = pred
+        self.blocks = blocks
+        N, H, A, K = pred.N, pred.H, pred.A, pred.K
+        b, R = blocks, blocks.R
+        self.ri = 2 * R
+        self.num_rows = N * H * self.ri
+        primal = np.zeros((R, b.width), dtype=bool)
+        primal[:, 0:2] = True  # every c depends on a
+        own_p = np.arange(b.io, b.io + 2)
+        own_v = own_p + 2
+        primal[1, [b.ilam + 1, *own_v]] = True  # c_a: λ_a, v_own
+        for i in range(A):  # agent lines: λ_i, own and agent i's state
+            r = 2 + i
+            primal[r, b.ilam + r] = True
+            primal[r, b.io : b.io + 4] = True
+            if i < K:
+                primal[r, b.inb + 4 * i : b.inb + 4 * i + 4] = True
+            elif i == K:  # the robot base: (x, y, θ), ν_base
+                primal[r, b.iq : b.iq + 3] = True
+                primal[r, b.inu :] = True
+            else:  # the nearest body: all of q, ν_base
+                primal[r, b.iq :] = True
+        primal[2 + A :, own_p] = True  # static lines: own position only
+        self.mask = np.concatenate([primal, primal], axis=0)
+        self.mask[R + np.arange(R), b.ilam + np.arange(R)] = True
+        blocks.groups.append(self)
+        self.UpdatePattern()
+
+    def UpdatePattern(self):
+        self.rows, self.cols, self._gather = self.blocks.Pattern(self.mask, self.ri)
+
+    def Bounds(self, eps):
+        R = self.blocks.R
+        lo = np.concatenate([np.full(R, -np.inf), np.full(R, -eps)])
+        hi = np.concatenate([np.zeros(R), np.full(R, np.inf)])
+        count = self.pred.N * self.pred.H
+        return np.tile(lo, count), np.tile(hi, count)
+
+    def Eval(self, point):
+        pred, b = self.pred, self.blocks
+        e = b.Evaluate(point)
+        z = point.z
+        cfg = pred.config
+        N, H, A, R = pred.N, pred.H, pred.A, b.R
+        a, lam = z[pred.a], z[pred.lam]
+        v, c = e["v"], e["c"]
+        il = b.ilam
+        dc = np.zeros((N, H, R, b.width))
+        dc[:, :, 0, 0:2] = 2 * a
+        dc[:, :, 1, 0:2] = 2 * (a - v)
+        dc[:, :, 1, il + 1] = -0.5 / cfg.slack_weight_acceleration
+        dc[:, :, 1, b.io + 2 : b.io + 4] = -2 * (a - v)
+        dc[:, :, 2 : 2 + A, 0:2] = -e["n"]
+        dc[:, :, 2 + A :, 0:2] = -e["no"]
+        dc[:, :, np.arange(2, 2 + A), il + np.arange(2, 2 + A)] = (
+            -0.5 / cfg.slack_weight_velocity
+        )
+        # Agent line i: ∂(ρ_i − n_iᵀa)/∂x through its own and other state.
+        dX = e["drho"] - np.einsum("khidx,khd->khix", e["dn"], a)  # (N,H,A,8)
+        dX_own = np.zeros((N, H, R, 4))
+        dX_own[:, :, 2 : 2 + A] = dX[..., :4]
+        dX_own[:, :, 2 + A :, 0:2] = e["drho_o"] - np.einsum(
+            "khodx,khd->khox", e["dno"], a
+        )
+        dX_other = np.zeros((N, H, R, A, 4))
+        dX_other[:, :, np.arange(2, 2 + A), np.arange(A)] = dX[..., 4:]
+        b.StateDerivatives(dc, slice(0, R), dX_own, dX_other, e)
+        # Complementarity λ_r c_r.
+        dlc = lam[..., None] * dc
+        dlc[:, :, np.arange(R), il + np.arange(R)] += c
+        g = np.concatenate([c, e["lc"]], axis=-1)
+        J = np.concatenate([dc, dlc], axis=2)
+        return g.reshape(-1), J.reshape(-1)[self._gather]

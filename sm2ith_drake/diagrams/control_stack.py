@@ -1,0 +1,150 @@
+"""AddControlStack: the controller side of SM²ITH, the same in simulation and
+on hardware.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from sm2ith_drake.scenario import ControlPeriod, Scenario
+from sm2ith_drake.systems.hierarchical_mpc import HierarchicalMpc
+from sm2ith_drake.systems.humans import HumanEstimator
+from sm2ith_drake.systems.logger import RunLogger
+from sm2ith_drake.systems.planner import TaskPlanner
+
+
+@dataclasses.dataclass
+class ControlStack:
+    """What AddControlStack added, and the ports the robot side must connect.
+
+    Attributes:
+        planner, controller, logger: the TaskPlanner, HierarchicalMpc and
+            RunLogger (named ``planner``, ``controller``, ``logger``).
+        estimator: the HumanEstimator (``human_estimator``) or None.
+        robot_state_inputs: every input port that takes the robot state
+            [q; ν] (planner, controller, logger).
+        detections_input: the HumanEstimator's ``detections`` input
+            (HumanDetections), or None.
+        estimate_input: the controller's ``human_estimate`` input when there
+            is no estimator in the stack (ground-truth perception), else None.
+        command: the controller's ``command`` output [u; ν_cmd].
+    """
+
+    planner: object
+    controller: object
+    logger: object
+    estimator: object
+    robot_state_inputs: list
+    detections_input: object
+    estimate_input: object
+    command: object
+
+
+def AddControlStack(
+    builder,
+    scenario: Scenario,
+    robot,
+    tasks,
+    *,
+    with_estimator: bool = True,
+    with_truth_log: bool = False,
+    with_people: bool | None = None,
+    max_log_samples: int = 0,
+) -> ControlStack:
+    """Adds the controller side of SM²ITH to ``builder``: the TaskPlanner,
+    the HierarchicalMpc, the RunLogger and (with people) the HumanEstimator,
+    wired to each other.
+
+    The simulation (MakeSimulation) and the hardware interface
+    (MakeHardwareInterface) both build their controller this way and connect
+    the returned ports to a simulated or a real robot, so the controller is
+    the same in both.
+
+    Args:
+        builder: the DiagramBuilder.
+        scenario: the configuration (controller, prediction, safety, ...).
+        robot: the MobileManipulator.
+        tasks: the Task objects.
+        with_estimator: with people, add a HumanEstimator fed by detections
+            (otherwise the controller's ``human_estimate`` input is exposed).
+        with_truth_log: give the logger a ``human_truth`` input (simulation).
+        with_people: add the human prediction and estimator; defaults to
+            whether the scenario lists people (on hardware, people come from
+            motion capture whatever the scenario lists).
+        max_log_samples: bound on the RunLogger's samples (0: unbounded).
+    """
+    n, m = robot.num_positions, robot.num_velocities
+    period = ControlPeriod(scenario.controller)
+    has_humans = bool(scenario.humans) if with_people is None else with_people
+    planner = builder.AddNamedSystem(
+        "planner",
+        TaskPlanner(tasks, num_states=n + m, robot=robot, sequence=scenario.sequence),
+    )
+    controller = builder.AddNamedSystem(
+        "controller",
+        HierarchicalMpc(
+            robot,
+            tasks,
+            scenario.controller,
+            prediction=scenario.prediction if has_humans else None,
+            safety=scenario.safety,
+            obstacles=scenario.obstacles,
+        ),
+    )
+    logger = builder.AddNamedSystem(
+        "logger",
+        # With humans, sample faster than the control rate so brief close
+        # approaches are not missed by the safety metrics.
+        RunLogger(
+            robot,
+            tasks,
+            period=min(period, 0.05) if has_humans else period,
+            with_humans=with_truth_log,
+            max_samples=max_log_samples,
+        ),
+    )
+    builder.Connect(
+        planner.GetOutputPort("task_references"),
+        controller.GetInputPort("task_references"),
+    )
+    builder.Connect(
+        planner.GetOutputPort("task_references"), logger.GetInputPort("task_references")
+    )
+    builder.Connect(
+        controller.GetOutputPort("controller_state"),
+        logger.GetInputPort("controller_state"),
+    )
+    estimator = detections = estimate = None
+    if has_humans:
+        if with_estimator:
+            pc = scenario.perception
+            estimator = builder.AddNamedSystem(
+                "human_estimator",
+                HumanEstimator(
+                    period=pc.period,
+                    measurement_noise=pc.noise,
+                    acceleration_noise=pc.acceleration_noise,
+                    track_timeout=pc.track_timeout,
+                ),
+            )
+            builder.Connect(
+                estimator.GetOutputPort("human_estimate"),
+                controller.GetInputPort("human_estimate"),
+            )
+            detections = estimator.GetInputPort("detections")
+        else:
+            estimate = controller.GetInputPort("human_estimate")
+    return ControlStack(
+        planner=planner,
+        controller=controller,
+        logger=logger,
+        estimator=estimator,
+        robot_state_inputs=[
+            planner.GetInputPort("robot_state"),
+            controller.GetInputPort("robot_state"),
+            logger.GetInputPort("robot_state"),
+        ],
+        detections_input=detections,
+        estimate_input=estimate,
+        command=controller.GetOutputPort("command"),
+    )

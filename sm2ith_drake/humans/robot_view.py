@@ -1,0 +1,110 @@
+"""The robot as the people see it: its base, and its body nearest to each
+person (the closest point on the nearest capsule's axis, moving with the
+base), with the derivatives the KKT embedding needs.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from sm2ith_drake.geometry import point_segment_distance_2d
+
+
+@dataclass
+class RobotView:
+    """The robot at T steps as the people's ORCA sees it."""
+
+    q: np.ndarray  # (T, n)
+    nu: np.ndarray  # (T, m)
+    p: np.ndarray  # (T, 2) base position
+    v: np.ndarray  # (T, 2) base velocity in the world
+    ends: np.ndarray  # (T, C, 2, 2) capsule axis end points on the floor
+    ends_jacobian: np.ndarray  # (T, C, 2, 2, n) their Jacobians w.r.t. q
+    radii: np.ndarray  # (C,)
+
+    def Step(self, k: int) -> "RobotView":
+        """The view of step k alone (T = 1)."""
+        sl = slice(k, k + 1)
+        return RobotView(
+            self.q[sl],
+            self.nu[sl],
+            self.p[sl],
+            self.v[sl],
+            self.ends[sl],
+            self.ends_jacobian[sl],
+            self.radii,
+        )
+
+
+@dataclass
+class NearestBody:
+    """Per (step, person): the closest point on the axis of the robot capsule
+    nearest to the person (surface distance), its radius, and the point's
+    derivatives w.r.t. the configuration and the person's position."""
+
+    point: np.ndarray  # (T, H, 2)
+    radius: np.ndarray  # (T, H)
+    d_dq: np.ndarray  # (T, H, 2, n)
+    d_dp: np.ndarray  # (T, H, 2, 2)
+
+
+def NearestBodies(robot: RobotView, positions) -> NearestBody:
+    """The nearest robot body of every person (as humans/crowd.py's
+    _NearestBody) with the derivatives of its closest point: for
+    c = A + s(B − A), s = clip((P − A)·d / d·d) with d = B − A, the clipped
+    ends move with A or B, and inside ∂s follows from the quotient rule."""
+    P = np.asarray(positions, dtype=float)  # (T, H, 2)
+    A = robot.ends[:, None, :, 0]  # (T, 1, C, 2)
+    B = robot.ends[:, None, :, 1]
+    d = B - A
+    dd = np.sum(d * d, axis=-1)  # (T, 1, C)
+    w = P[:, :, None] - A  # (T, H, C, 2)
+    short = dd < 1e-9  # a vertical capsule is a point on the floor
+    dist, s, _ = point_segment_distance_2d(A, B, P[:, :, None])  # (T, H, C)
+    closest = A + s[..., None] * d  # (T, H, C, 2)
+    i = np.argmin(dist - robot.radii, axis=-1)  # (T, H)
+    T, H = P.shape[:2]
+    t_idx, h_idx = np.meshgrid(np.arange(T), np.arange(H), indexing="ij")
+    s_i = s[t_idx, h_idx, i]
+    d_i = d[t_idx, 0, i]  # (T, H, 2)
+    w_i = w[t_idx, h_idx, i]
+    dd_i = dd[t_idx, 0, i]
+    JA = robot.ends_jacobian[t_idx, i, 0]  # (T, H, 2, n)
+    JB = robot.ends_jacobian[t_idx, i, 1]
+    Jd = JB - JA
+    d_dq = (1 - s_i)[..., None, None] * JA + s_i[..., None, None] * JB
+    d_dp = np.zeros((T, H, 2, 2))
+    inside = (s_i > 0) & (s_i < 1) & ~short[t_idx, 0, i]
+    if np.any(inside):
+        inv = 1.0 / np.where(inside, dd_i, 1.0)
+        # ∂s/∂q = [d·(−J_A) + w·J_d − 2s d·J_d] / d·d;  ∂s/∂P = dᵀ / d·d.
+        ds_dq = (
+            -np.einsum("thi,thin->thn", d_i, JA)
+            + np.einsum("thi,thin->thn", w_i, Jd)
+            - 2 * s_i[..., None] * np.einsum("thi,thin->thn", d_i, Jd)
+        ) * inv[..., None]
+        ds_dq[~inside] = 0.0
+        d_dq += d_i[..., :, None] * ds_dq[..., None, :]
+        outer = d_i[..., :, None] * d_i[..., None, :] * inv[..., None, None]
+        d_dp = np.where(inside[..., None, None], outer, 0.0)
+    return NearestBody(
+        point=closest[t_idx, h_idx, i],
+        radius=robot.radii[i],
+        d_dq=d_dq,
+        d_dp=d_dp,
+    )
+
+
+def HumanDistances(robot, states, human_positions) -> np.ndarray:
+    """(T, H) horizontal distance from each human's centre to the nearest
+    robot body (every capsule's surface: the base and every arm link)."""
+    x = np.asarray(states)
+    P = np.asarray(human_positions, dtype=float)  # (T, H, 2)
+    if P.size == 0:
+        return np.zeros((len(x), 0))
+    kin = robot.CalcKinematics(x[:, : robot.num_positions])
+    ends = kin.capsule_points[..., :2]  # (T, C, 2, 2)
+    d, _, _ = point_segment_distance_2d(
+        ends[:, None, :, 0], ends[:, None, :, 1], P[:, :, None, :]
+    )  # (T, H, C)
+    return np.min(d - robot.capsule_radii[None, None, :], axis=2)
