@@ -5,9 +5,10 @@ import numpy as np
 import pytest
 
 from sm2ith_drake.control.mpc_controller import MpcController
+from sm2ith_drake.control.stage_problem import StageResult
 from sm2ith_drake.resources import GetDiagramsDir
 from sm2ith_drake.run.simulation import RunSimulation
-from sm2ith_drake.scenario_loader import LoadScenario
+from sm2ith_drake.scenario_loader import LoadScenario, MakeRobot
 
 CONFLICT = GetDiagramsDir() / "conflict.scenarios.yaml"
 REACH = GetDiagramsDir() / "reach.scenarios.yaml"
@@ -141,8 +142,6 @@ def test_rti_converges_to_the_nlp_solution():
         scenario_name="ridgeback_ur10_reach",
         scenario_text="{tasks: [{kind: ee_position, target: [1.0, 0.5, 0.8]}]}",
     )
-    from sm2ith_drake.scenario_loader import MakeRobot
-
     robot = MakeRobot(scenario)
     q0 = robot.default_q.copy()
     nu0 = np.zeros(robot.num_velocities)
@@ -165,10 +164,27 @@ def test_rti_converges_to_the_nlp_solution():
     assert np.max(np.abs(plans["rti"].z - plans["snopt"].z)) < 1e-3
 
 
-def test_failed_lower_stage_keeps_the_plan_above():
-    from sm2ith_drake.control.htmpc import StageResult
-    from sm2ith_drake.scenario_loader import MakeRobot
+class _RecordingStageSolver:
+    """A stage solver that records the plans of the one it wraps."""
 
+    def __init__(self, solver):
+        self.solver = solver
+        self.plans = []
+
+    def Solve(self, point, **kwargs):
+        result = self.solver.Solve(point, **kwargs)
+        self.plans.append(result.z.copy())
+        return result
+
+
+class _FailingStageSolver:
+    """A stage solver that always fails."""
+
+    def Solve(self, point, **kwargs):
+        return StageResult(z=point.z, success=False, status="forced", iterations=0)
+
+
+def test_failed_lower_stage_keeps_the_plan_above():
     scenario = LoadScenario(filename=CONFLICT, scenario_name="conflict_ee_over_base")
     robot = MakeRobot(scenario)
     controller = MpcController(robot, scenario.tasks, scenario.controller)
@@ -180,36 +196,26 @@ def test_failed_lower_stage_keeps_the_plan_above():
     full = solver.Solve(q0=q0, nu0=nu0, targets=targets, z_guess=z0)
     assert full.success and full.status == "solved" and len(full.stages) == 2
 
-    first_stage_z = []
-    upper_solve = solver._solvers[0].Solve
-
-    def record(*args, **kwargs):
-        result = upper_solve(*args, **kwargs)
-        first_stage_z.append(result.z.copy())
-        return result
-
-    def fail(point, **kwargs):
-        return StageResult(z=point.z, success=False, status="forced", iterations=0)
-
-    solver._solvers[0].Solve = record
-    solver._solvers[1].Solve = fail
+    # Through the solver's declared seam: the EE stage recorded, the base
+    # stage forced to fail.
+    recording = _RecordingStageSolver(solver.stage_solvers[0])
+    solver.stage_solvers[0] = recording
+    solver.stage_solvers[1] = _FailingStageSolver()
     partial = solver.Solve(q0=q0, nu0=nu0, targets=targets, z_guess=z0)
     assert partial.success
     assert partial.status.startswith("solved through 'ee_position'")
     assert len(partial.stages) == 1
     # The plan is the EE stage's (its last pass), not the base stage's.
-    assert np.array_equal(partial.z, first_stage_z[-1])
+    assert np.array_equal(partial.z, recording.plans[-1])
     assert not np.allclose(partial.z, full.z)
 
     # The top stage failing is a failed solve (the controller falls back).
-    solver._solvers[0].Solve = fail
+    solver.stage_solvers[0] = _FailingStageSolver()
     failed = solver.Solve(q0=q0, nu0=nu0, targets=targets, z_guess=z0)
     assert not failed.success and "forced" in failed.status
 
 
 def test_joint_too_fast_to_stop_before_its_limit_is_braked_not_infeasible():
-    from sm2ith_drake.scenario_loader import MakeRobot
-
     scenario = LoadScenario(
         filename=GetDiagramsDir() / "reach.scenarios.yaml",
         scenario_name="stretch3_reach",

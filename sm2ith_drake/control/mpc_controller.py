@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sm2ith_drake.control.cbf import ObstacleSegments
-from sm2ith_drake.control.htmpc import HierarchicalSolver, MpcSolution
+from sm2ith_drake.control.hierarchy import HierarchicalSolver, MpcSolution
 from sm2ith_drake.control.prediction.factory import MakePredictor
 from sm2ith_drake.control.prediction.orca_kkt import PredictionConsistency
 from sm2ith_drake.control.program import MpcProgram

@@ -1,0 +1,182 @@
+"""The hierarchical task MPC (eq. htmpc) and the weighted-sum baseline: one
+control step solves every stage (eq. stmpc) in priority order.
+
+After each stage the errors of its cost tasks at its solution become, through
+:func:`~sm2ith_drake.control.stage_problem.LexicographicBounds`, the bounds
+that every later stage must keep (eq. stmpc_lex_constr). Two stage solvers:
+
+- :class:`~sm2ith_drake.control.rti_solver.RtiStageSolver` (default): the
+  real-time iteration, one sparse QP per stage on one shared linearization;
+- :class:`~sm2ith_drake.control.nlp_solver.NlpStageSolver`: the full
+  nonlinear stage problems with SNOPT or IPOPT, the validation reference.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.solvers import SolverOptions
+
+from sm2ith_drake.control.nlp_solver import NlpStageSolver
+from sm2ith_drake.control.program import MpcProgram
+from sm2ith_drake.control.rti_solver import RtiStageSolver
+from sm2ith_drake.control.stage_problem import (
+    LexicographicBounds,
+    MakeStages,
+    StageResult,
+)
+
+
+@dataclass
+class MpcSolution:
+    """The outcome of one control step, held in the controller's state."""
+
+    z: np.ndarray
+    q: np.ndarray  # (N+1, n) planned configurations
+    nu: np.ndarray  # (N+1, m)
+    u: np.ndarray  # (N, m)
+    p_WE: np.ndarray  # (N+1, 3) planned EE path
+    success: bool
+    status: str
+    stages: list[StageResult]
+    solve_time: float
+    iterations: int
+    # Predicted human positions (N+1, H, 2) and the human id of each slot
+    # (−1: empty), when the program has a predictor.
+    human_predictions: np.ndarray | None = None
+    human_slot_ids: np.ndarray | None = None
+    # RTI passes that produced z (1 for the NLP solvers).
+    passes: int = 1
+
+
+class HierarchicalSolver:
+    """Solves the whole hierarchy (or the weighted sum) for one control step.
+
+    ``stage_solvers`` holds one stage solver per entry of ``stages``, in
+    priority order. It is a declared seam: any object with the stage
+    solvers' ``Solve(point, *, lower, upper, lex_bounds, linearizations)``
+    returning a :class:`StageResult` may replace an entry (tests use it to
+    force a stage to fail).
+    """
+
+    def __init__(
+        self,
+        program: MpcProgram,
+        *,
+        method: str = "htmpc",
+        solver: str = "rti",
+        solver_options=None,
+        lexicographic_tolerance: float = 1e-3,
+        rti_iterations: int = 1,
+        rti_proximal_weight: float = 1.0,
+    ):
+        self.program = program
+        self.method = method
+        self.solver_name = solver
+        self.tolerance = lexicographic_tolerance
+        self.rti_iterations = max(1, int(rti_iterations))
+        self.stages = MakeStages(program.tasks, method)
+        options = solver_options if solver_options is not None else SolverOptions()
+        if solver == "rti":
+            qp_options = dict(options.options.get("PIQP", {}))
+            self.stage_solvers = [
+                RtiStageSolver(program, s, qp_options, rti_proximal_weight)
+                for s in self.stages
+            ]
+        else:
+            self.stage_solvers = [
+                NlpStageSolver(program, s, solver, options) for s in self.stages
+            ]
+
+    def Solve(self, *, q0, nu0, targets: dict, z_guess: np.ndarray) -> MpcSolution:
+        """Runs every stage in priority order from the initial guess.
+
+        RTI: each of the ``rti_iterations`` passes linearizes once, at the
+        previous pass's result, and solves the whole hierarchy on that one
+        linearization, so every stage is feasible given the stage above it.
+        A pass after the first that fails keeps the previous pass's plan. A
+        stage below the first that fails leaves the plan of the stages above
+        it (status "solved through ...": every hard constraint and the higher
+        priorities hold; only the lower tasks go unoptimized for that step).
+        """
+        start = time.perf_counter()
+        program = self.program
+        # State and input limits (eq. htmpc_limits), the initial state pinned
+        # to the measured one (eq. htmpc_init).
+        lower, upper = program.VariableBounds(q0, nu0)
+        passes = self.rti_iterations if self.solver_name == "rti" else 1
+        z = z_guess
+        passes_run = 0
+        results: list[StageResult] = []
+        success, status, iterations = True, "solved", 0
+        for it in range(passes):
+            if it > 0 and program.predictor is not None:
+                # The next linearization point: this pass's robot plan with
+                # the humans' exact responses to it (see Predictor.Restore).
+                z = z.copy()
+                program.predictor.Restore(z)
+            point = program.MakePoint(z, targets)
+            z_pass, ok, why, pass_results = self._SolveHierarchy(point, lower, upper)
+            if iterations >= 0 and all(r.iterations >= 0 for r in pass_results):
+                iterations += sum(r.iterations for r in pass_results)
+            else:
+                iterations = -1  # the NLP solvers do not report iterations
+            if not ok:
+                if it == 0:
+                    success, status, results = False, why, pass_results
+                break
+            z, results, status = z_pass, pass_results, why
+            passes_run = it + 1
+        q, nu, u = program.layout.Split(z)
+        kin = program.robot.CalcKinematics(q)
+        predictor = program.predictor
+        return MpcSolution(
+            human_predictions=None if predictor is None else predictor.Predictions(z),
+            human_slot_ids=None if predictor is None else predictor.slot_ids,
+            z=z,
+            q=q,
+            nu=nu,
+            u=u,
+            p_WE=np.asarray(kin.p_WE),
+            success=success,
+            status=status,
+            stages=results,
+            solve_time=time.perf_counter() - start,
+            iterations=int(iterations),
+            passes=passes_run,
+        )
+
+    def _SolveHierarchy(self, point, lower, upper):
+        """One pass of every stage at one linearization point."""
+        linearizations: dict = {}
+        lex_bounds: dict = {}
+        results: list[StageResult] = []
+        z = point.z
+        for stage, solver in zip(self.stages, self.stage_solvers, strict=True):
+            result = solver.Solve(
+                point,
+                lower=lower,
+                upper=upper,
+                lex_bounds=lex_bounds,
+                linearizations=linearizations,
+            )
+            results.append(result)
+            if not result.success:
+                why = f"stage '{stage.name}': {result.status}"
+                if len(results) == 1:
+                    return z, False, why, results
+                # The plan of the stages above meets every hard constraint
+                # (dynamics, limits, barriers) and their priorities; only
+                # this and the lower tasks go unoptimized this step.
+                previous = self.stages[len(results) - 2].name
+                why = f"solved through '{previous}' ({why})"
+                return z, True, why, results[:-1]
+            z = result.z
+            # Eq. stmpc_lex_constr for every later stage.
+            for task, _ in stage.cost_tasks:
+                lex_bounds[task.name] = LexicographicBounds(
+                    result.errors[task.name], self.tolerance
+                )
+        return z, True, "solved", results

@@ -1,0 +1,211 @@
+"""The real-time-iteration stage solver (the default).
+
+All groups are linearized at the warm start (the shifted previous plan), and
+each stage (eq. stmpc) is one sparse QP, with the Gauss–Newton Hessian for the
+task costs (eq. stmpc_cost), solved by PIQP in a workspace set up once and
+only updated afterwards. With one iteration per step every stage shares the
+linearization, so e*_i is the linearized error of stage i and the stage-i
+solution is feasible for every later stage (eq. stmpc_lex_constr): the
+hierarchy can never make a QP infeasible.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from sm2ith_drake.control.groups import ConstraintGroup
+from sm2ith_drake.control.piqp_workspace import PIQP_DEFAULT_SETTINGS, PiqpWorkspace
+from sm2ith_drake.control.program import MpcProgram
+from sm2ith_drake.control.stage_problem import (
+    LexicographicBand,
+    Stage,
+    StageProblem,
+    StageResult,
+    TaskCostGaussNewton,
+)
+
+# QP structures (workspaces) kept per stage for recent sparsity patterns.
+_MAX_STRUCTURES = 4
+
+
+def _Linearize(group: ConstraintGroup, point, num_variables):
+    g, vals = group.Eval(point)
+    Jz = np.bincount(group.rows, vals * point.z[group.cols], minlength=group.num_rows)
+    # g(z) ≈ J z + c,  c = g(z̄) − J z̄.
+    return vals, g - Jz
+
+
+class RtiStageSolver:
+    """Solves one stage as a sparse QP linearized at a point (see module doc)."""
+
+    def __init__(
+        self,
+        program: MpcProgram,
+        stage: Stage,
+        qp_options: dict,
+        proximal_weight: float = 1.0,
+    ):
+        self.program = program
+        self.stage = stage
+        self.proximal_weight = proximal_weight
+        self._problem = StageProblem(program, stage)
+        nv = program.layout.num_variables
+        self._nv = nv
+        self._shared = self._problem.shared_constraints
+        self._lex = self._problem.lexicographic_groups
+        self._cost = self._problem.cost_groups
+        self._settings = dict(PIQP_DEFAULT_SETTINGS)
+        self._settings.update(qp_options)
+        # Built structures (QP workspace and index maps) by sparsity pattern:
+        # the pattern changes only when the predictor's neighbour sets do, and
+        # a few recent ones are kept so sets that switch back cost nothing.
+        self._structures: dict = {}
+        self._key = None
+        self._UseStructure()
+
+    def _UseStructure(self):
+        key = self.program.PatternKey()
+        if key == self._key:
+            return
+        structure = self._structures.pop(key, None) or self._BuildStructure()
+        self._structures[key] = structure  # most recent last
+        while len(self._structures) > _MAX_STRUCTURES:
+            self._structures.pop(next(iter(self._structures)))
+        self._key = key
+        for name, value in structure.items():
+            setattr(self, name, value)
+
+    def _BuildStructure(self) -> dict:
+        """The QP workspace and index maps for the groups' current patterns."""
+        nv = self._nv
+        # Constraint rows: shared groups, then lexicographic groups. A shared
+        # group whose bounds are equal when the stage is built (dynamics,
+        # predictor equalities) is an equality for good.
+        rows, cols, equality, offset = [], [], [], 0
+        for group, glo, ghi in self._shared:
+            rows.append(group.rows + offset)
+            cols.append(group.cols)
+            if np.array_equal(glo, ghi):
+                equality.append(offset + np.arange(group.num_rows))
+            offset += group.num_rows
+        for group in self._lex:
+            rows.append(group.rows + offset)
+            cols.append(group.cols)
+            offset += group.num_rows
+        a_pattern = (np.concatenate(rows), np.concatenate(cols))
+        equality_rows = np.concatenate(equality) if equality else np.zeros(0, int)
+        # P pattern: diagonal plus the structure of Jᵀ J of every cost group.
+        prows, pcols = [np.arange(nv)], [np.arange(nv)]
+        for group, _ in self._cost:
+            S = sp.csr_matrix(
+                (np.ones(group.rows.size), (group.rows, group.cols)),
+                shape=(group.num_rows, nv),
+            )
+            S = (S.T @ S).tocoo()
+            prows.append(S.row)
+            pcols.append(S.col)
+        p_pattern = (np.concatenate(prows), np.concatenate(pcols))
+        qp = PiqpWorkspace(
+            num_variables=nv,
+            p_pattern=p_pattern,
+            a_pattern=a_pattern,
+            equality_rows=equality_rows,
+            settings=self._settings,
+        )
+        # The cost Hessian is only nonzero on the diagonal and among the
+        # (few) columns the cost groups touch: it is assembled there, small
+        # and dense, then gathered into P's pattern.
+        cost_cols = np.unique(
+            np.concatenate([g.cols for g, _ in self._cost] + [np.zeros(0, dtype=int)])
+        )
+        local = np.full(nv, -1)
+        local[cost_cols] = np.arange(cost_cols.size)
+        prow, pcol = qp.p_pattern
+        p_row_local, p_col_local = local[prow], local[pcol]
+        p_diag = prow == pcol
+        return dict(
+            _qp=qp,
+            _cost_cols=cost_cols,
+            _cost_local=[local[g.cols] for g, _ in self._cost],
+            _p_row_local=p_row_local,
+            _p_col_local=p_col_local,
+            _p_in_cost=(p_row_local >= 0) & (p_col_local >= 0),
+            _p_diag=p_diag,
+            _p_diag_index=prow[p_diag],
+        )
+
+    def Solve(
+        self, point, *, lower, upper, lex_bounds: dict, linearizations: dict
+    ) -> StageResult:
+        """One QP at ``point``. ``lex_bounds`` maps task names to |e*| + tol;
+        ``linearizations`` caches (values, c) per group for this point."""
+        program, problem, nv = self.program, self._problem, self._nv
+        self._UseStructure()
+
+        def lin(group):
+            key = id(group)
+            if key not in linearizations:
+                linearizations[key] = _Linearize(group, point, nv)
+            return linearizations[key]
+
+        # The task costs (eq. stmpc_cost), Gauss–Newton on the cost columns.
+        nc = self._cost_cols.size
+        P_cost = np.zeros((nc, nc))
+        q_cost = np.zeros(nc)
+        for (group, scale), local in zip(self._cost, self._cost_local, strict=True):
+            vals, c = lin(group)
+            w = problem.CostWeights(group, scale)
+            J = np.zeros((group.num_rows, nc))
+            np.add.at(J, (group.rows, local), vals)
+            hessian, gradient = TaskCostGaussNewton(J, w, c)
+            P_cost += hessian
+            q_cost += gradient
+        # J_eff and the proximal term ½ρ‖z − z̄‖².
+        rho = self.proximal_weight
+        p_values = np.zeros(self._p_diag.size)
+        p_values[self._p_in_cost] = P_cost[
+            self._p_row_local[self._p_in_cost], self._p_col_local[self._p_in_cost]
+        ]
+        p_values[self._p_diag] += (problem.effort_diagonal + rho)[self._p_diag_index]
+        qvec = np.zeros(nv)
+        qvec[self._cost_cols] = q_cost
+        qvec -= rho * point.z
+        qvec += problem.effort_linear
+        # Shared constraints (eq. stmpc_sys_consts), then the lexicographic
+        # ones (eq. stmpc_lex_constr), both on the linearization J z + c.
+        a_vals, lo, hi = [], [], []
+        for group, glo, ghi in self._shared:
+            vals, c = lin(group)
+            a_vals.append(vals)
+            lo.append(glo - c)
+            hi.append(ghi - c)
+        for group in self._lex:
+            vals, c = lin(group)
+            band_lo, band_hi = LexicographicBand(lex_bounds[group.task.name])
+            a_vals.append(vals)
+            lo.append(band_lo - c)
+            hi.append(band_hi - c)
+        x, status, iters = self._qp.Solve(
+            p_values,
+            qvec,
+            np.concatenate(a_vals),
+            lower,
+            upper,
+            np.concatenate(lo),
+            np.concatenate(hi),
+        )
+        success = status in ("solved",)
+        errors = {}
+        if x is not None and np.all(np.isfinite(x)):
+            for group in self._lex + [g for g, _ in self._cost]:
+                vals, c = lin(group)
+                e = np.bincount(
+                    group.rows, vals * x[group.cols], minlength=group.num_rows
+                )
+                errors[group.task.name] = (e + c).reshape(program.layout.N, -1)
+        else:
+            success = False
+        return StageResult(
+            z=x, success=success, status=status, iterations=iters, errors=errors
+        )
