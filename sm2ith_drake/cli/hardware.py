@@ -10,32 +10,24 @@ from urllib.parse import urlsplit
 
 from pydrake.lcm import DrakeLcm
 
+from sm2ith_drake.diagrams.hardware import MakeHardwareDiagram
 from sm2ith_drake.errors import UserError
-from sm2ith_drake.lcm.driver import RunDriver, ScriptedWalkers
-from sm2ith_drake.lcm.interface import (
-    MakeHardwareDiagram,
-    RunHardware,
-    ValidateHardwareConfig,
-)
+from sm2ith_drake.lcm.hardware_config import ValidateHardwareConfig
 from sm2ith_drake.robots import MODELS, MobileManipulator
-from sm2ith_drake.scenario import ControlPeriod, Scenario, ScenarioError
+from sm2ith_drake.run.hardware import RunDriver, RunHardware
+from sm2ith_drake.run.walkers import ScriptedWalkers
+from sm2ith_drake.scenario import Scenario, ScenarioError
 from sm2ith_drake.scenario_loader import LoadScenarioAndRobot
 
 
-def _UserError(message):
-
-    return UserError(message)
-
-
 def _LoadScenario(filename: str, name: str, text: str = "{}"):
-
     try:
         scenario, robot = LoadScenarioAndRobot(
             filename=filename, scenario_name=name, scenario_text=text
         )
         ValidateHardwareConfig(scenario.hardware)
     except (FileNotFoundError, ScenarioError, ValueError) as e:
-        raise _UserError(str(e)) from e
+        raise UserError(str(e)) from e
     return scenario, robot
 
 
@@ -43,7 +35,7 @@ def _SplitScenarioRef(ref: str, option: str) -> tuple[str, str]:
     """'FILE:NAME' → (FILE, NAME)."""
     path, sep, name = ref.rpartition(":")
     if not sep or not path or not name:
-        raise _UserError(f"{option} takes FILE:SCENARIO, got '{ref}'")
+        raise UserError(f"{option} takes FILE:SCENARIO, got '{ref}'")
     return path, name
 
 
@@ -53,12 +45,11 @@ _LCM_PROVIDERS = ("udpm", "mpudpm", "memq", "file", "tcpq")
 def CheckLcmUrl(url: str) -> None:
     """Raises UserError for a URL that LCM cannot open (DrakeLcm only prints
     an error and then silently drops every message). Opens nothing."""
-
     if not url:
         return  # LCM's default ($LCM_DEFAULT_URL or its udpm default)
     scheme = url.split("://", 1)[0] if "://" in url else ""
     if scheme not in _LCM_PROVIDERS:
-        raise _UserError(
+        raise UserError(
             f"LCM URL '{url}': the provider must be one of "
             + ", ".join(f"{p}://" for p in _LCM_PROVIDERS)
         )
@@ -68,20 +59,19 @@ def CheckLcmUrl(url: str) -> None:
             address = ipaddress.ip_address(parts.hostname or "")
             parts.port  # noqa: B018 (raises for a malformed port)
         except ValueError as e:
-            raise _UserError(f"LCM URL '{url}': {e}") from e
+            raise UserError(f"LCM URL '{url}': {e}") from e
         if not address.is_multicast:
-            raise _UserError(f"LCM URL '{url}': {address} is not a multicast address")
+            raise UserError(f"LCM URL '{url}': {address} is not a multicast address")
 
 
 def _MakeLcm(params, url: str | None):
-
     if url is not None:
         params.lcm_url = url
     CheckLcmUrl(params.lcm_url)
     try:
         return DrakeLcm(params)
     except RuntimeError as e:
-        raise _UserError(f"cannot open LCM '{params.lcm_url}': {e}") from e
+        raise UserError(f"cannot open LCM '{params.lcm_url}': {e}") from e
 
 
 def _WriteJson(path: str | None, data: dict) -> None:
@@ -96,10 +86,9 @@ def _Ms(stats, key="median") -> str:
 
 
 def _Hardware(args) -> int:
-
     scenario, robot = _LoadScenario(args.file, args.scenario, args.scenario_text)
     if args.duration is not None and args.duration <= 0:
-        raise _UserError("--duration must be > 0")
+        raise UserError("--duration must be > 0")
     h = scenario.hardware
     lcm = _MakeLcm(h.lcm, args.lcm_url)
     if args.graphviz:
@@ -151,15 +140,14 @@ def _ParseFloats(text: str, option: str) -> list[float]:
     try:
         return [float(v) for v in text.replace(",", " ").split()]
     except ValueError as e:
-        raise _UserError(f"{option}: not a list of numbers: '{text}'") from e
+        raise UserError(f"{option}: not a list of numbers: '{text}'") from e
 
 
 def _Driver(args) -> int:
-
     if args.scenario:
         scenario, robot = _LoadScenario(*_SplitScenarioRef(args.scenario, "--scenario"))
         if scenario.robot.model != args.robot:
-            raise _UserError(
+            raise UserError(
                 f"--robot {args.robot} but the scenario's robot is "
                 f"{scenario.robot.model}"
             )
@@ -167,32 +155,43 @@ def _Driver(args) -> int:
         scenario = Scenario()
         scenario.robot.model = args.robot
         robot = MobileManipulator(args.robot)
-    humans = list(scenario.humans)
     if args.humans is not None:
         if args.humans.strip().isdigit():
-            humans = ScriptedWalkers(int(args.humans))
+            scenario.humans = ScriptedWalkers(
+                int(args.humans),
+                x_start=3.0,
+                x_span=2.0,
+                half_width=3.0,
+                base_speed=0.7,
+            )
         else:
             people, _ = _LoadScenario(*_SplitScenarioRef(args.humans, "--humans"))
-            humans = list(people.humans)
+            # The people walk as in their own scenario: "relaxed_orca" people
+            # follow its prediction model, at its crowd time step.
+            scenario.humans = list(people.humans)
+            scenario.prediction = people.prediction
+            scenario.crowd_time_step = people.crowd_time_step
     try:
         ValidateHardwareConfig(scenario.hardware)
     except ScenarioError as e:
-        raise _UserError(str(e)) from e
+        raise UserError(str(e)) from e
     initial_q = scenario.robot.initial_q or list(robot.default_q)
     if args.initial_q is not None:
         initial_q = _ParseFloats(args.initial_q, "--initial_q")
     if len(initial_q) != robot.num_positions:
-        raise _UserError(
+        raise UserError(
             f"--initial_q needs {robot.num_positions} numbers for {args.robot}, "
             f"got {len(initial_q)}"
         )
+    scenario.robot.initial_q = list(initial_q)
+    scenario.random_seed = args.seed
     if args.duration is not None and args.duration <= 0:
-        raise _UserError("--duration must be > 0")
+        raise UserError("--duration must be > 0")
     h = scenario.hardware
     lcm = _MakeLcm(h.lcm, args.lcm_url)
     print(
-        f"sm2ith driver: {args.robot} with {len(humans)} simulated people on "
-        f"{lcm.get_lcm_url()}: state '{h.state_channel}' every "
+        f"sm2ith driver: {args.robot} with {len(scenario.humans)} simulated people "
+        f"on {lcm.get_lcm_url()}: state '{h.state_channel}' every "
         f"{h.driver_state_period * 1e3:.0f} ms, detections "
         f"'{h.detections_channel}' every {scenario.perception.period * 1e3:.0f} "
         f"ms, commands '{h.command_channel}' (watchdog "
@@ -200,16 +199,10 @@ def _Driver(args) -> int:
         flush=True,
     )
     summary = RunDriver(
+        scenario,
         robot=robot,
-        hardware=h,
-        initial_q=initial_q,
-        humans=humans,
-        perception=scenario.perception,
-        obstacles=scenario.obstacles,
-        control_period=ControlPeriod(scenario.controller),
         lcm=lcm,
         duration=args.duration,
-        seed=args.seed,
         log=None if args.quiet else sys.stderr,
     )
     c, t = summary["commands"], summary["timing"]

@@ -9,7 +9,8 @@ import numpy as np
 from sm2ith_drake.errors import UserError
 from sm2ith_drake.resources import GetDiagramsDir
 from sm2ith_drake.run.simulation import RunSimulation
-from sm2ith_drake.scenario import ControlPeriod, HumanConfig, ScenarioError
+from sm2ith_drake.run.walkers import ScriptedWalkers
+from sm2ith_drake.scenario import ControlPeriod, ScenarioError
 from sm2ith_drake.scenario_loader import ApplyScenarioText, LoadScenarioAndRobot
 
 
@@ -38,18 +39,9 @@ def BenchmarkScenario(
         raise UserError(str(e)) from e
     # People pacing back and forth across the robot's way (scripted, so the
     # crowd is the same for every predictor), seen without perception noise.
-    for j in range(humans):
-        x = 0.8 + 2.4 * j / max(humans - 1, 1)
-        side = 2.5 if j % 2 == 0 else -2.5
-        scenario.humans.append(
-            HumanConfig(
-                behavior="scripted",
-                start=[x, side],
-                waypoints=[[x, -side], [x, side]],
-                loop=True,
-                speed=0.8 + 0.1 * (j % 3),
-            )
-        )
+    scenario.humans.extend(
+        ScriptedWalkers(humans, x_start=0.8, x_span=2.4, half_width=2.5, base_speed=0.8)
+    )
     scenario.prediction.predictor = predictor
     scenario.prediction.max_humans = max(humans, 1)
     scenario.perception.estimator = "truth"
