@@ -240,7 +240,7 @@ def test_joint_too_fast_to_stop_before_its_limit_is_braked_not_infeasible():
     assert state.command_u[arm - 1] == pytest.approx(robot.nudot_upper[arm - 1])
 
     # Without the braking-consistent bounds the same step is infeasible.
-    controller.program._WidenForBraking = lambda *args: None
+    controller.program.braking_consistent_bounds = False
     state = controller.Step(
         controller.InitialState(), time_now=0.0, q0=q0, nu0=nu0, targets=targets
     )

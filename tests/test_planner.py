@@ -69,6 +69,8 @@ def test_bounded_run_log_keeps_the_latest_window():
     diagram = builder.Build()
     simulator = Simulator(diagram)
     simulator.AdvanceTo(10.0)
+    # The logger records in an update event: the one due at 10 s is pending.
+    simulator.AdvancePendingEvents()
     logger = diagram.GetSubsystemByName("logger")
     log = logger.GetLog(logger.GetMyContextFromRoot(simulator.get_context()))
     total = log.dropped_samples + len(log.times)

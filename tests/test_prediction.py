@@ -6,8 +6,9 @@ import pytest
 from scipy.optimize import minimize
 
 from sm2ith_drake.control.mpc_controller import MpcController
+from sm2ith_drake.control.prediction.slots import FilterPreferredVelocities
 from sm2ith_drake.humans.half_planes import orca_agent_half_planes
-from sm2ith_drake.humans.messages import HumanEstimate
+from sm2ith_drake.humans.messages import HumanEstimate, HumanIntents
 from sm2ith_drake.humans.relaxed_orca import (
     relaxed_orca_action,
     relaxed_orca_actions,
@@ -129,8 +130,33 @@ def _KktController(robot_name, humans, **prediction):
     )
 
 
+def _SetHumans(c, estimate, predictor_state=None):
+    """Hands the controller's predictor a prediction of ``estimate`` (as the
+    HumanPredictor system would, without a robot plan to simulate against);
+    returns the predictor's next state."""
+    model = c.human_predictor
+    prediction, state = model.Predict(
+        predictor_state or model.InitialState(), estimate=estimate
+    )
+    c.predictor.SetPrediction(prediction)
+    return state
+
+
+def _Step(c, state, predictor_state, estimate, **kwargs):
+    """One control step with the predictor in front, as in the Diagram."""
+    model = c.human_predictor
+    prediction, predictor_state = model.Predict(
+        predictor_state or model.InitialState(),
+        estimate=estimate,
+        q0=kwargs["q0"],
+        nu0=kwargs["nu0"],
+        warm_start_inputs=c.WarmStartInputs(state),
+    )
+    return c.Step(state, prediction=prediction, **kwargs), predictor_state
+
+
 def _KktPoint(robot, c, humans):
-    c.predictor.SetHumans(_HeadOn(humans))
+    _SetHumans(c, _HeadOn(humans))
     z = c.WarmStart(c.InitialState(), robot.default_q, np.zeros(robot.num_velocities))
     z = z + np.random.default_rng(0).normal(scale=0.05, size=z.size)
     return z, {"base_position": np.array([4.0, 0.0])}
@@ -143,7 +169,7 @@ def test_kkt_group_jacobians_match_finite_differences(robot_name):
     neighbour each and a wall exercise the capped lines and static lines."""
     robot, c = _KktController(robot_name, 3, max_neighbors=1, neighbor_derivatives=True)
     z, targets = _KktPoint(robot, c, 3)
-    assert c.predictor.K == 1 and c.predictor.S == 1
+    assert c.predictor.num_neighbors == 1 and c.predictor.num_static_lines == 1
     program = c.program
     for group, _, _ in program.extra_constraints:
         g0, vals = group.Eval(program.MakePoint(z, targets))
@@ -182,11 +208,11 @@ def test_block_jacobi_jacobian_drops_only_the_neighbour_derivatives():
             for group, _, _ in c.program.extra_constraints[:2]
         ]
     pred = c.predictor
-    N, H = pred.N, pred.H
+    N, H = pred.N, pred.num_slots
     human_of_column = np.full(z.size, -1)
     human_of_column[pred.p] = np.arange(H)[None, :, None]
     human_of_column[pred.a] = np.arange(H)[None, :, None]
-    rows_per_block = (2, 2 * pred.R)
+    rows_per_block = (2, 2 * pred.num_multipliers)
     for (g_exact, J_exact), (g_bj, J_bj), per_block in zip(
         Js[True], Js[False], rows_per_block, strict=True
     ):
@@ -219,7 +245,7 @@ def test_neighbours_are_the_closest_approaches_and_the_pattern_follows():
         positions=[[5.0, 3.0], [6.0, 3.0], [5.0, 5.5]],
         velocities=[[0.0, 0.0], [1.5, 0.0], [0.0, -1.2]],
     )
-    c.predictor.SetHumans(estimate)
+    _SetHumans(c, estimate)
     assert c.predictor.neighbors[0].tolist() == [2]
     key = c.program.PatternKey()
     kwargs = dict(
@@ -228,7 +254,7 @@ def test_neighbours_are_the_closest_approaches_and_the_pattern_follows():
         nu0=np.zeros(robot.num_velocities),
         targets={"base_position": np.array([4.0, 0.0])},
     )
-    state = c.Step(c.InitialState(), humans=estimate, **kwargs)
+    state, ps = _Step(c, c.InitialState(), None, estimate, **kwargs)
     assert state.record.mode == "solved", state.record.status
     # Human 2 turns away, 1 turns back toward 0: 0's neighbour changes.
     estimate = HumanEstimate(
@@ -236,19 +262,19 @@ def test_neighbours_are_the_closest_approaches_and_the_pattern_follows():
         positions=[[5.0, 3.0], [6.0, 3.0], [5.0, 5.5]],
         velocities=[[0.0, 0.0], [-1.0, 0.0], [0.0, 1.2]],
     )
-    state = c.Step(state, humans=estimate, **kwargs)
+    state, ps = _Step(c, state, ps, estimate, **kwargs)
     assert c.predictor.neighbors[0].tolist() == [1]
     assert c.program.PatternKey() != key
     assert state.record.mode == "solved", state.record.status
     # Every pair interacts when max_neighbors ≥ H − 1.
     _, full = _KktController("ridgeback_ur10", 3, max_neighbors=5)
-    full.predictor.SetHumans(estimate)
+    _SetHumans(full, estimate)
     assert full.predictor.neighbors.tolist() == [[1, 2], [0, 2], [0, 1]]
 
 
 def test_warm_start_is_an_exact_kkt_point():
     robot, c = _Controller("ridgeback_ur10", "orca_kkt", humans=3)
-    c.predictor.SetHumans(_HeadOn(3))
+    _SetHumans(c, _HeadOn(3))
     z = c.WarmStart(c.InitialState(), robot.default_q, np.zeros(robot.num_velocities))
     stat, cons, comp = c.predictor.Residuals(z, c.program.layout)
     assert np.max(np.abs(stat)) < 1e-6
@@ -262,13 +288,15 @@ def test_warm_start_is_an_exact_kkt_point():
 def _PredictedHuman(predictor, base_target):
     robot, c = _Controller("ridgeback_ur10", predictor, humans=1)
     human = HumanEstimate(ids=[0], positions=[[3.0, 0.0]], velocities=[[-1.0, 0.0]])
-    state = c.Step(
+    state, _ = _Step(
+        c,
         c.InitialState(),
+        None,
+        human,
         time_now=0.0,
         q0=robot.default_q,
         nu0=np.zeros(robot.num_velocities),
         targets={"base_position": np.asarray(base_target)},
-        humans=human,
     )
     assert state.record.mode == "solved", state.record.status
     return state.last_solution.human_predictions[:, 0]
@@ -425,15 +453,15 @@ def test_nearest_body_point_derivatives_match_finite_differences(robot_name):
     for _ in range(40):
         q = robot.default_q + rng.normal(scale=0.3, size=robot.num_positions)
         P = q[:2] + rng.uniform(-1.5, 1.5, 2)
-        view = pred.RobotView(q[None], np.zeros((1, robot.num_velocities)))
+        view = pred.model.RobotView(q[None], np.zeros((1, robot.num_velocities)))
         body = NearestBodies(view, P[None, None])
         fd_q = np.zeros((2, robot.num_positions))
         for i in range(robot.num_positions):
             qp, qm = q.copy(), q.copy()
             qp[i] += h
             qm[i] -= h
-            up = NearestBodies(pred.RobotView(qp[None], view.nu), P[None, None])
-            um = NearestBodies(pred.RobotView(qm[None], view.nu), P[None, None])
+            up = NearestBodies(pred.model.RobotView(qp[None], view.nu), P[None, None])
+            um = NearestBodies(pred.model.RobotView(qm[None], view.nu), P[None, None])
             fd_q[:, i] = (up.point - um.point)[0, 0] / (2 * h)
         fd_p = np.zeros((2, 2))
         for i in range(2):
@@ -470,10 +498,10 @@ def test_program_grows_linearly_with_the_number_of_people():
     pred = c.predictor
     owner = np.full(program.layout.num_variables, -1)
     for idx in (pred.p, pred.a, pred.lam):
-        owner[idx] = np.arange(pred.H)[None, :, None]
+        owner[idx] = np.arange(pred.num_slots)[None, :, None]
     eq = c.predictor._equality
     kkt = eq.rows < eq.num_kkt
-    row_owner = (eq.rows[kkt] // 2) % pred.H
+    row_owner = (eq.rows[kkt] // 2) % pred.num_slots
     col_owner = owner[eq.cols[kkt]]
     assert np.all((col_owner == -1) | (col_owner == row_owner))
 
@@ -495,30 +523,41 @@ def test_preferred_velocity_is_the_low_pass_filtered_measurement():
         ),
         safety=SafetyConfig(),
     )
-    state = c.InitialState()
+    alpha = c.period / (2.0 + c.period)
     walking = HumanEstimate(ids=[7], positions=[[5.0, 5.0]], velocities=[[1.0, 0.0]])
-    state.preferred_velocities = c._PreferredVelocities(state, walking)
-    np.testing.assert_allclose(state.preferred_velocities[7], [1.0, 0.0])
+    preferred = FilterPreferredVelocities({}, walking, None, alpha)
+    np.testing.assert_allclose(preferred[7], [1.0, 0.0])
     turned = HumanEstimate(ids=[7], positions=[[5.0, 5.0]], velocities=[[0.0, 1.0]])
     steps = 10
     for _ in range(steps):
-        state.preferred_velocities = c._PreferredVelocities(state, turned)
+        preferred = FilterPreferredVelocities(preferred, turned, None, alpha)
     decay = (2.0 / (2.0 + c.period)) ** steps
-    np.testing.assert_allclose(
-        state.preferred_velocities[7], [decay, 1.0 - decay], atol=1e-12
-    )
+    np.testing.assert_allclose(preferred[7], [decay, 1.0 - decay], atol=1e-12)
     lost = HumanEstimate(ids=[7], positions=[[5.0, 5.0]], velocities=[[np.nan, 0.0]])
-    kept = c._PreferredVelocities(state, lost)
-    np.testing.assert_array_equal(kept[7], state.preferred_velocities[7])
-    # Through a control step, the predictor's v_pref is the filtered value.
-    new = c.Step(
-        state,
+    kept = FilterPreferredVelocities(preferred, lost, None, alpha)
+    np.testing.assert_array_equal(kept[7], preferred[7])
+    # A known intent (simulation only) overrides the measurement.
+    intent = HumanIntents(ids=[7], preferred_velocities=[[0.3, -0.4]])
+    known = FilterPreferredVelocities(preferred, turned, intent, alpha)
+    np.testing.assert_array_equal(known[7], [0.3, -0.4])
+    # Through the predictor and a control step, the MPC's v_pref is the
+    # filtered value, and the predictor remembers it in its state.
+    model = c.human_predictor
+    ps = model.InitialState()
+    ps.preferred_velocities = dict(preferred)
+    new, ps = _Step(
+        c,
+        c.InitialState(),
+        ps,
+        turned,
         time_now=0.0,
         q0=robot.default_q,
         nu0=np.zeros(robot.num_velocities),
         targets={"base_position": np.array([4.0, 0.0])},
-        humans=turned,
     )
+    assert new.record.mode == "solved", new.record.status
+    filtered = preferred[7] + alpha * (np.array([0.0, 1.0]) - preferred[7])
+    np.testing.assert_allclose(ps.preferred_velocities[7], filtered)
     slot = int(np.nonzero(c.predictor.slot_ids == 7)[0][0])
-    np.testing.assert_allclose(c.predictor.v_pref[slot], new.preferred_velocities[7])
+    np.testing.assert_allclose(c.predictor.v_pref[slot], filtered)
     assert c.predictor.v_pref[slot][0] > 0.05  # not the latest measurement

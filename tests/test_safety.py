@@ -227,31 +227,42 @@ def test_stale_plan_is_not_replayed_into_a_person():
         ahead[0] -= 0.005
     standing = HumanEstimate(ids=[1], positions=[ahead], velocities=[[0.0, 0.0]])
     # 0.2 s at 0.5 m/s closes 0.1 m: h from 0.05 to −0.05 < (1 − γ)·0.05.
-    assert not controller._ReplayIsSafe(q0, nu0, u, standing)
+    assert not controller.ReplayIsSafe(q0, nu0, u, standing)
     leaving = HumanEstimate(ids=[1], positions=[ahead], velocities=[[0.6, 0.0]])
-    assert controller._ReplayIsSafe(q0, nu0, u, leaving)
+    assert controller.ReplayIsSafe(q0, nu0, u, leaving)
     far = HumanEstimate(ids=[1], positions=[[5.0, 4.0]], velocities=[[0.0, 0.0]])
-    assert controller._ReplayIsSafe(q0, nu0, u, far)
+    assert controller.ReplayIsSafe(q0, nu0, u, far)
 
     # In a control step: the solver fails after a plan was made with the
     # person far away; now the person stands ahead, so the robot brakes.
     state = controller.InitialState()
     targets = {t.name: np.asarray(t.target, dtype=float) for t in controller.tasks}
     state = controller.Step(
-        state, time_now=0.0, q0=q0, nu0=nu0, targets=targets, humans=far
+        state,
+        time_now=0.0,
+        q0=q0,
+        nu0=nu0,
+        targets=targets,
+        prediction=_Predict(controller, far),
     )
     assert state.record.mode == "solved"
 
-    def fail(**kwargs):
-        raise RuntimeError("forced failure")
+    class FailingSolver:
+        def Solve(self, **kwargs):
+            raise RuntimeError("forced failure")
 
-    controller.solver.Solve = fail
+    controller.solver = FailingSolver()  # the declared seam
     q1 = q0.copy()
     nu1 = state.plan.nu[controller.shift]
     # The plan itself would be replayed (it matches the measured state)…
-    assert controller._ReplayPlan(state, nu1) is not None
+    assert controller.ReplayPlan(state, nu1) is not None
     state = controller.Step(
-        state, time_now=0.2, q0=q1, nu0=nu1, targets=targets, humans=standing
+        state,
+        time_now=0.2,
+        q0=q1,
+        nu0=nu1,
+        targets=targets,
+        prediction=_Predict(controller, standing),
     )
     # …but not into the person.
     assert state.record.mode == "brake"
@@ -292,7 +303,7 @@ def test_guard_holds_over_its_steps_against_a_person_who_does_not_yield():
             q0=q0,
             nu0=nu0,
             targets=targets,
-            humans=person,
+            prediction=_Predict(controller, person, q0, nu0),
         )
         assert state.record.mode == "solved"
         plan = state.plan
@@ -315,3 +326,16 @@ def test_guard_holds_over_its_steps_against_a_person_who_does_not_yield():
     h1, _ = barrier(1)
     assert h1[1] >= a * h1[0] - 5e-3
     assert min(h1[2] - a * h1[1], h1[3] - a * h1[2]) < -1e-2
+
+
+def _Predict(controller, estimate, q0=None, nu0=None):
+    """The HumanPredictor's output for ``estimate`` at a first step."""
+    model = controller.human_predictor
+    prediction, _ = model.Predict(
+        model.InitialState(),
+        estimate=estimate,
+        q0=q0,
+        nu0=nu0,
+        warm_start_inputs=controller.WarmStartInputs(controller.InitialState()),
+    )
+    return prediction

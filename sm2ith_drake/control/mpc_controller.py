@@ -19,8 +19,11 @@ from sm2ith_drake.control.cbf import ObstacleSegments
 from sm2ith_drake.control.hierarchy import HierarchicalSolver, MpcSolution
 from sm2ith_drake.control.prediction.factory import MakePredictor
 from sm2ith_drake.control.prediction.orca_kkt import PredictionConsistency
+from sm2ith_drake.control.prediction.predict import HumanPredictorModel
 from sm2ith_drake.control.program import MpcProgram
+from sm2ith_drake.control.robot_groups import ModelStep
 from sm2ith_drake.control.tasks import MakeTask
+from sm2ith_drake.humans.messages import HumanPrediction, MpcPlan
 from sm2ith_drake.humans.robot_view import HumanDistances
 from sm2ith_drake.scenario import ControllerConfig, ControlPeriod, SafetyConfig
 
@@ -73,11 +76,19 @@ class ControllerState:
     last_solution: MpcSolution | None = None
     command_u: np.ndarray | None = None
     command_nu: np.ndarray | None = None
-    # The prediction model's preferred velocity of every tracked human, by
-    # id (low-pass filtered measured velocities; see PredictionConfig).
-    preferred_velocities: dict = field(default_factory=dict)
     counters: ControllerCounters = field(default_factory=ControllerCounters)
     record: StepRecord = field(default_factory=StepRecord)
+
+
+def WarmStartInputs(plan, plan_age: int, shift: int, horizon: int, num_velocities: int):
+    """The inputs (N, m) a control step starts from: the last successful
+    plan's, shifted by the control steps since it was solved (``plan_age``
+    + 1 periods of ``shift`` MPC steps each), zeros beyond it or without one."""
+    u = np.zeros((horizon, num_velocities))
+    if plan is not None:
+        previous = plan.u[shift * (plan_age + 1) :]
+        u[: len(previous)] = previous
+    return u
 
 
 def BrakingAcceleration(robot, nu: np.ndarray, period: float) -> np.ndarray:
@@ -86,7 +97,18 @@ def BrakingAcceleration(robot, nu: np.ndarray, period: float) -> np.ndarray:
 
 
 class MpcController:
-    """The plain-Python controller behind the HierarchicalMpc LeafSystem."""
+    """The plain-Python controller behind the HierarchicalMpc LeafSystem.
+
+    Attributes:
+        program: the MpcProgram every stage shares.
+        solver: the HierarchicalSolver; any object with its ``Solve(*, q0,
+            nu0, targets, z_guess)`` may replace it (a declared seam: tests
+            use it to make a solve fail and exercise the fallback).
+        predictor: the prediction model embedded in the program, or None.
+        human_predictor: the HumanPredictorModel of the same configuration
+            (for callers that step the controller without the HumanPredictor
+            system), or None.
+    """
 
     def __init__(
         self,
@@ -113,8 +135,19 @@ class MpcController:
             raise ValueError(f"task names must be unique: {names}")
         segments = ObstacleSegments(obstacles)
         self.predictor = None
-        self.prediction = prediction
+        self.human_predictor = None
         if prediction is not None:
+            # The predictor's math, for callers without a HumanPredictor
+            # system (tests, scripts) and for the empty prediction.
+            self.human_predictor = HumanPredictorModel(
+                prediction,
+                horizon=config.horizon,
+                time_step=config.time_step,
+                control_period=ControlPeriod(config),
+                robot=robot,
+                obstacles=segments,
+                human_radius=(safety or SafetyConfig()).human_radius,
+            )
             self.predictor = MakePredictor(
                 prediction,
                 horizon=config.horizon,
@@ -148,20 +181,37 @@ class MpcController:
         self.period = ControlPeriod(config)
         self.shift = max(1, int(round(self.period / config.time_step)))
 
+    def EmptyPrediction(self) -> HumanPrediction:
+        """The prediction with nobody tracked."""
+        model = self.human_predictor
+        return model.Predict(model.InitialState(), estimate=None)[0]
+
     def WarmStart(self, state: ControllerState, q0, nu0) -> np.ndarray:
         """The previous plan's inputs shifted by one control period and rolled
-        out from the measured state (a dynamically consistent guess)."""
-        N, m = self.program.layout.N, self.robot.num_velocities
-        u = np.zeros((N, m))
-        if state.plan is not None:
-            prev = state.plan.u[self.shift * (state.plan_age + 1) :]
-            u[: len(prev)] = prev
-            if len(prev) and len(prev) < N:
-                u[len(prev) :] = 0.0
-        z = self.program.Rollout(q0, nu0, u)
+        out from the measured state (a dynamically consistent guess), with
+        the predictor's humans (their predicted motion along it)."""
+        z = self.program.Rollout(q0, nu0, self.WarmStartInputs(state))
         if self.predictor is not None:
-            self.predictor.WarmStart(z, previous=state.plan, shift=self.shift)
+            self.predictor.WarmStart(z)
         return z
+
+    def WarmStartInputs(self, state: ControllerState) -> np.ndarray:
+        """The robot inputs the next step starts from (WarmStartInputs)."""
+        return WarmStartInputs(
+            state.plan,
+            state.plan_age,
+            self.shift,
+            self.program.layout.N,
+            self.robot.num_velocities,
+        )
+
+    def Plan(self, state: ControllerState) -> MpcPlan:
+        """The ``plan`` output of a state: its latest solution and the inputs
+        the next step will start from."""
+        return MpcPlan(
+            solution=state.last_solution,
+            warm_start_inputs=self.WarmStartInputs(state),
+        )
 
     def Step(
         self,
@@ -171,11 +221,12 @@ class MpcController:
         q0,
         nu0,
         targets: dict,
-        humans=None,
+        prediction: HumanPrediction | None = None,
     ) -> ControllerState:
         """Computes the next command; returns the new state (input unchanged).
 
-        ``humans`` is a HumanEstimate (ignored without a predictor)."""
+        ``prediction`` is the HumanPredictor's output for this step (ignored
+        without a predictor; None: nobody tracked)."""
         start = time.perf_counter()
         q0 = np.asarray(q0, dtype=float)
         nu0 = np.asarray(nu0, dtype=float)
@@ -184,19 +235,11 @@ class MpcController:
         new.counters.steps += 1
         record = StepRecord(time=time_now)
         solution = None
+        humans = None
         if self.predictor is not None:
-            new.preferred_velocities = self._PreferredVelocities(state, humans)
-            self.predictor.SetHumans(
-                humans,
-                None
-                if humans is None
-                else np.array(
-                    [
-                        new.preferred_velocities.get(int(i), v)
-                        for i, v in zip(humans.ids, humans.velocities, strict=True)
-                    ]
-                ).reshape(-1, 2),
-            )
+            prediction = prediction or self.EmptyPrediction()
+            self.predictor.SetPrediction(prediction)
+            humans = prediction.estimate
         if np.all(np.isfinite(q0)) and np.all(np.isfinite(nu0)):
             try:
                 solution = self.solver.Solve(
@@ -229,8 +272,8 @@ class MpcController:
             record.mode = "solved"
         else:
             new.counters.fallbacks += 1
-            u = self._ReplayPlan(state, nu0)
-            if u is not None and not self._ReplayIsSafe(q0, nu0, u, humans):
+            u = self.ReplayPlan(state, nu0)
+            if u is not None and not self.ReplayIsSafe(q0, nu0, u, humans):
                 u = None
                 new.counters.unsafe_replays += 1
             if u is not None:
@@ -264,36 +307,7 @@ class MpcController:
         new.record = record
         return new
 
-    def _PreferredVelocities(self, state: ControllerState, humans) -> dict:
-        """Each tracked human's v_pref: the measured velocity low-pass
-        filtered with ``preferred_velocity_time_constant`` (a new or
-        untracked id starts from its measurement; a non-finite measurement
-        keeps the previous value), or the intent the estimate knows (ideal
-        perception of people who walk as the model says)."""
-        if humans is None:
-            return {}
-        tau = self.prediction.preferred_velocity_time_constant
-        alpha = 1.0 if tau <= 0 else self.period / (tau + self.period)
-        known = humans.preferred_velocities
-        out = {}
-        for row, (hid, v) in enumerate(zip(humans.ids, humans.velocities, strict=True)):
-            hid = int(hid)
-            if known is not None and np.all(np.isfinite(known[row])):
-                out[hid] = known[row].copy()  # the simulation's ground truth
-                continue
-            previous = state.preferred_velocities.get(hid)
-            if not np.all(np.isfinite(v)):
-                if previous is not None:
-                    out[hid] = previous
-                continue
-            out[hid] = (
-                np.array(v, dtype=float)
-                if previous is None
-                else previous + alpha * (np.asarray(v) - previous)
-            )
-        return out
-
-    def _ReplayIsSafe(self, q0, nu0, u, humans) -> bool:
+    def ReplayIsSafe(self, q0, nu0, u, humans) -> bool:
         """Whether replaying ``u`` for one control period keeps the DT-CBF
         h(x₁) ≥ (1 − γ) h(x₀) against every tracked human moving on at its
         measured velocity (the first-step guard the solved plans obey). A
@@ -303,8 +317,7 @@ class MpcController:
         if not (np.all(np.isfinite(q0)) and np.all(np.isfinite(nu0))):
             return False
         dt = self.period
-        nu1 = np.clip(nu0 + dt * u, self.robot.nu_lower, self.robot.nu_upper)
-        q1 = q0 + 0.5 * dt * self.robot.G(q0) @ (nu0 + nu1)
+        q1, _ = ModelStep(self.robot, q0, nu0, u, dt)
         p0 = np.asarray(humans.positions, dtype=float)
         p1 = p0 + dt * np.nan_to_num(np.asarray(humans.velocities, dtype=float))
         reach = self.safety.human_radius + self.safety.human_margin
@@ -312,7 +325,7 @@ class MpcController:
         h1 = HumanDistances(self.robot, q1[None], p1[None])[0] - reach
         return bool(np.all(h1 >= (1.0 - self.safety.gamma) * h0 - 1e-9))
 
-    def _ReplayPlan(self, state: ControllerState, nu0):
+    def ReplayPlan(self, state: ControllerState, nu0):
         plan = state.plan
         if plan is None:
             return None

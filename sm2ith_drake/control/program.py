@@ -26,6 +26,7 @@ from sm2ith_drake.control.groups import (
 )
 from sm2ith_drake.control.robot_groups import (
     DynamicsGroup,
+    Rollout,
     SelfCollisionGroup,
     TaskErrorGroup,
 )
@@ -87,7 +88,7 @@ class MpcProgram:
         if predictor is not None:
             predictor.AddVariables(L)
             self.extra_constraints += predictor.ConstraintGroups(self)
-        if (predictor is not None and predictor.H) or len(segments):
+        if (predictor is not None and predictor.num_slots) or len(segments):
             safety = safety or SafetyConfig()
             positions = (
                 predictor.p
@@ -131,6 +132,10 @@ class MpcProgram:
             lower[self.cbf.slack] = 0.0
         self.variable_lower = lower
         self.variable_upper = upper
+        # Joint bounds that follow full braking where a joint cannot stop
+        # before its limit (see _WidenForBraking); False only to show that
+        # the QP is infeasible without them.
+        self.braking_consistent_bounds = True
 
     def PatternKey(self) -> bytes:
         """Identifies the groups' current Jacobian sparsity patterns (they
@@ -146,7 +151,8 @@ class MpcProgram:
         # The measured ν may sit marginally outside its limits; pinning it is
         # still consistent because only ν_1.. are bounded by the limits.
         lower[L.nu[0]] = upper[L.nu[0]] = nu0
-        self._WidenForBraking(lower, upper, q0, nu0)
+        if self.braking_consistent_bounds:
+            self._WidenForBraking(lower, upper, q0, nu0)
         if self.predictor is not None:
             self.predictor.ApplyBounds(lower, upper)
             if self.cbf is not None and self.cbf.num_guard:
@@ -187,19 +193,9 @@ class MpcProgram:
 
     def Rollout(self, q0: np.ndarray, nu0: np.ndarray, u: np.ndarray) -> np.ndarray:
         """z from integrating the model with inputs u (ν clipped to limits)."""
-        L, dt, robot = self.layout, self.time_step, self.robot
+        L = self.layout
         z = np.zeros(L.num_variables)
-        q, nu = np.array(q0, dtype=float), np.array(nu0, dtype=float)
-        z[L.q[0]], z[L.nu[0]] = q, nu
-        for k in range(L.N):
-            uk = np.clip(u[k], robot.nudot_lower, robot.nudot_upper)
-            nu_next = np.clip(nu + dt * uk, robot.nu_lower, robot.nu_upper)
-            q = np.clip(
-                q + 0.5 * dt * robot.G(q) @ (nu + nu_next), robot.q_lower, robot.q_upper
-            )
-            nu = nu_next
-            uk = (nu - z[L.nu[k]]) / dt
-            z[L.u[k]], z[L.q[k + 1]], z[L.nu[k + 1]] = uk, q, nu
+        z[L.q], z[L.nu], z[L.u] = Rollout(self.robot, q0, nu0, u, self.time_step)
         return z
 
     def ConstraintGroups(self) -> list[tuple[ConstraintGroup, np.ndarray, np.ndarray]]:

@@ -165,3 +165,31 @@ class SelfCollisionGroup(ConstraintGroup):
         d, grad = np.asarray(d)[1:], np.asarray(grad)[1:]  # (N, P), (N, P, n)
         jac = np.concatenate([grad, np.ones(grad.shape[:2] + (1,))], axis=2)
         return (d + point.z[self.slack]).ravel(), jac.ravel()
+
+
+def ModelStep(robot, q, nu, u, time_step: float):
+    """One step of the MPC's discrete model (eq. htmpc_dyn as DynamicsGroup
+    writes it): ν' = clip(ν + Δt u) to the velocity limits, and
+    q' = q + Δt G(q) (ν + ν')/2. Returns (q', ν')."""
+    nu_next = np.clip(nu + time_step * u, robot.nu_lower, robot.nu_upper)
+    return q + 0.5 * time_step * robot.G(q) @ (nu + nu_next), nu_next
+
+
+def Rollout(robot, q0, nu0, u, time_step: float):
+    """Integrates the model from (q0, ν0) with the inputs u (N, m), clipped
+    to the acceleration limits (q to the joint limits): q (N+1, n),
+    ν (N+1, m) and the inputs u (N, m) that reproduce them."""
+    N = len(u)
+    q = np.array(q0, dtype=float)
+    nu = np.array(nu0, dtype=float)
+    qs = np.empty((N + 1, q.size))
+    nus = np.empty((N + 1, nu.size))
+    us = np.empty((N, nu.size))
+    qs[0], nus[0] = q, nu
+    for k in range(N):
+        uk = np.clip(u[k], robot.nudot_lower, robot.nudot_upper)
+        q, nu = ModelStep(robot, q, nu, uk, time_step)
+        q = np.clip(q, robot.q_lower, robot.q_upper)
+        us[k] = (nu - nus[k]) / time_step
+        qs[k + 1], nus[k + 1] = q, nu
+    return qs, nus, us

@@ -6,11 +6,13 @@ from __future__ import annotations
 
 import dataclasses
 
+from sm2ith_drake.control.cbf import ObstacleSegments
 from sm2ith_drake.scenario import ControlPeriod, Scenario
 from sm2ith_drake.systems.hierarchical_mpc import HierarchicalMpc
 from sm2ith_drake.systems.humans import HumanEstimator
 from sm2ith_drake.systems.logger import RunLogger
 from sm2ith_drake.systems.planner import TaskPlanner
+from sm2ith_drake.systems.predictor import HumanPredictor
 
 
 @dataclasses.dataclass
@@ -21,12 +23,15 @@ class ControlStack:
         planner, controller, logger: the TaskPlanner, HierarchicalMpc and
             RunLogger (named ``planner``, ``controller``, ``logger``).
         estimator: the HumanEstimator (``human_estimator``) or None.
+        predictor: the HumanPredictor (``human_predictor``) or None.
         robot_state_inputs: every input port that takes the robot state
-            [q; ν] (planner, controller, logger).
+            [q; ν] (planner, predictor, controller, logger).
         detections_input: the HumanEstimator's ``detections`` input
             (HumanDetections), or None.
-        estimate_input: the controller's ``human_estimate`` input when there
+        estimate_input: the predictor's ``human_estimate`` input when there
             is no estimator in the stack (ground-truth perception), else None.
+        intents_input: the predictor's simulation-only ``human_intents``
+            input (with ``with_intents``), else None.
         command: the controller's ``command`` output [u; ν_cmd].
     """
 
@@ -34,9 +39,11 @@ class ControlStack:
     controller: object
     logger: object
     estimator: object
+    predictor: object
     robot_state_inputs: list
     detections_input: object
     estimate_input: object
+    intents_input: object
     command: object
 
 
@@ -49,11 +56,13 @@ def AddControlStack(
     with_estimator: bool = True,
     with_truth_log: bool = False,
     with_people: bool | None = None,
+    with_intents: bool = False,
     max_log_samples: int = 0,
 ) -> ControlStack:
     """Adds the controller side of SM²ITH to ``builder``: the TaskPlanner,
-    the HierarchicalMpc, the RunLogger and (with people) the HumanEstimator,
-    wired to each other.
+    the HierarchicalMpc, the RunLogger and (with people) the HumanEstimator
+    and the HumanPredictor, wired to each other:
+    HumanEstimator → HumanPredictor → HierarchicalMpc.
 
     The simulation (MakeSimulation) and the hardware interface
     (MakeHardwareInterface) both build their controller this way and connect
@@ -68,6 +77,9 @@ def AddControlStack(
         with_estimator: with people, add a HumanEstimator fed by detections
             (otherwise the controller's ``human_estimate`` input is exposed).
         with_truth_log: give the logger a ``human_truth`` input (simulation).
+        with_intents: give the predictor the simulation-only
+            ``human_intents`` input (the intents of people who walk as the
+            model says; ground-truth perception in simulation only).
         with_people: add the human prediction and estimator; defaults to
             whether the scenario lists people (on hardware, people come from
             motion capture whatever the scenario lists).
@@ -114,8 +126,30 @@ def AddControlStack(
         controller.GetOutputPort("controller_state"),
         logger.GetInputPort("controller_state"),
     )
-    estimator = detections = estimate = None
+    estimator = predictor = detections = estimate = intents = None
     if has_humans:
+        predictor = builder.AddNamedSystem(
+            "human_predictor",
+            HumanPredictor(
+                robot,
+                scenario.prediction,
+                horizon=scenario.controller.horizon,
+                time_step=scenario.controller.time_step,
+                control_period=period,
+                obstacle_segments=ObstacleSegments(scenario.obstacles),
+                human_radius=scenario.safety.human_radius,
+                with_intents=with_intents,
+            ),
+        )
+        builder.Connect(
+            predictor.GetOutputPort("human_prediction"),
+            controller.GetInputPort("human_prediction"),
+        )
+        builder.Connect(
+            controller.GetOutputPort("plan"), predictor.GetInputPort("plan")
+        )
+        if with_intents:
+            intents = predictor.GetInputPort("human_intents")
         if with_estimator:
             pc = scenario.perception
             estimator = builder.AddNamedSystem(
@@ -129,22 +163,27 @@ def AddControlStack(
             )
             builder.Connect(
                 estimator.GetOutputPort("human_estimate"),
-                controller.GetInputPort("human_estimate"),
+                predictor.GetInputPort("human_estimate"),
             )
             detections = estimator.GetInputPort("detections")
         else:
-            estimate = controller.GetInputPort("human_estimate")
+            estimate = predictor.GetInputPort("human_estimate")
+    robot_state_inputs = [
+        planner.GetInputPort("robot_state"),
+        controller.GetInputPort("robot_state"),
+        logger.GetInputPort("robot_state"),
+    ]
+    if predictor is not None:
+        robot_state_inputs.append(predictor.GetInputPort("robot_state"))
     return ControlStack(
         planner=planner,
         controller=controller,
         logger=logger,
         estimator=estimator,
-        robot_state_inputs=[
-            planner.GetInputPort("robot_state"),
-            controller.GetInputPort("robot_state"),
-            logger.GetInputPort("robot_state"),
-        ],
+        predictor=predictor,
+        robot_state_inputs=robot_state_inputs,
         detections_input=detections,
         estimate_input=estimate,
+        intents_input=intents,
         command=controller.GetOutputPort("command"),
     )

@@ -64,13 +64,17 @@ def MakeSimulation(
     )
     has_humans = bool(scenario.humans)
     segments = ObstacleSegments(scenario.obstacles)
+    truth_perception = scenario.perception.estimator == "truth"
     stack = AddControlStack(
         builder,
         scenario,
         robot,
         tasks,
-        with_estimator=scenario.perception.estimator != "truth",
+        with_estimator=not truth_perception,
         with_truth_log=has_humans,
+        # Ideal perception sees the intents of people who walk as the model
+        # says (crowd behaviour relaxed_orca), as before the estimate had them.
+        with_intents=truth_perception and has_humans,
     )
     planner, controller, logger = stack.planner, stack.controller, stack.logger
     crowd = None
@@ -87,6 +91,8 @@ def MakeSimulation(
             builder.Connect(sensor.GetOutputPort("detections"), stack.detections_input)
         else:
             builder.Connect(crowd.GetOutputPort("human_truth"), stack.estimate_input)
+        if stack.intents_input is not None:
+            builder.Connect(crowd.GetOutputPort("human_intents"), stack.intents_input)
         builder.Connect(
             crowd.GetOutputPort("human_truth"), logger.GetInputPort("human_truth")
         )

@@ -10,6 +10,7 @@ import numpy as np
 from pydrake.geometry import Meshcat
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator, SimulatorStatus
 from pydrake.systems.framework import EventStatus
+from tqdm import tqdm
 
 from sm2ith_drake.diagrams.simulation import MakeSimulation
 from sm2ith_drake.run.metrics import SummarizeRun
@@ -68,24 +69,22 @@ def RunSimulation(
         simulator.set_monitor(monitor)
     simulator.Initialize()
     if progress:
-        steps = max(1, int(np.ceil(end)))
-        for i in range(1, steps + 1):
-            status = simulator.AdvanceTo(min(end, end * i / steps))
-            print(
-                f"\r  simulated {simulator.get_context().get_time():6.1f} / "
-                f"{end:.1f} s",
-                end="",
-                file=sys.stderr,
-                flush=True,
-            )
-            if (
-                status.reason()
-                == SimulatorStatus.ReturnReason.kReachedTerminationCondition
-            ):
-                break
-        print(file=sys.stderr)
+        with tqdm(
+            total=round(end, 1), unit="s", desc="simulated", file=sys.stderr
+        ) as bar:
+            for i in range(1, max(1, int(np.ceil(end))) + 1):
+                status = simulator.AdvanceTo(min(end, i))
+                bar.update(round(simulator.get_context().get_time() - bar.n, 1))
+                if (
+                    status.reason()
+                    == SimulatorStatus.ReturnReason.kReachedTerminationCondition
+                ):
+                    break
     else:
         simulator.AdvanceTo(end)
+    # AdvanceTo leaves the update events due at the final time for the next
+    # call; perform them, so the logger records its sample at the end too.
+    simulator.AdvancePendingEvents()
     context = simulator.get_context()
     logger = diagram.GetSubsystemByName("logger")
     log = logger.GetLog(logger.GetMyContextFromRoot(context))

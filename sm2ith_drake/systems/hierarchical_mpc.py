@@ -1,4 +1,4 @@
-"""HierarchicalMpc: the controller LeafSystem over control.controller."""
+"""HierarchicalMpc: the controller LeafSystem over control/mpc_controller.py."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
 
 from sm2ith_drake.control.mpc_controller import ControllerState, MpcController
-from sm2ith_drake.humans.messages import HumanEstimate, MpcPlan
+from sm2ith_drake.humans.messages import HumanPrediction, MpcPlan
 from sm2ith_drake.planning.sequence import TaskReferences
 from sm2ith_drake.scenario import ControllerConfig
 
@@ -17,7 +17,7 @@ class HierarchicalMpc(LeafSystem):
 
     The solve happens in a periodic unrestricted update and its outcome (plan,
     command, counters, timing) is held in abstract state; outputs only read
-    that state.
+    that state (so no output depends on an input directly).
 
     .. pydrake_system::
 
@@ -25,15 +25,18 @@ class HierarchicalMpc(LeafSystem):
         input_ports:
         - robot_state
         - task_references
-        - human_estimate (with a predictor)
+        - human_prediction (with a predictor)
         output_ports:
         - command
         - plan
         - controller_state
 
-    ``robot_state`` is [q; ν]; ``command`` is [u = ν̇; ν_cmd]; ``plan`` is a
-    MpcPlan; ``controller_state`` the whole
-    ControllerState (counters and the last StepRecord).
+    ``robot_state`` is [q; ν]; ``human_prediction`` is the HumanPredictor's
+    output (for CVMM and React the prediction itself; for SM²ITH the warm
+    start and the neighbour structure the KKT embedding refines jointly with
+    the robot's plan); ``command`` is [u = ν̇; ν_cmd]; ``plan`` is an MpcPlan;
+    ``controller_state`` the whole ControllerState (counters and the last
+    StepRecord).
     """
 
     def __init__(
@@ -62,10 +65,10 @@ class HierarchicalMpc(LeafSystem):
         self._references = self.DeclareAbstractInputPort(
             "task_references", AbstractValue.Make(TaskReferences())
         )
-        self._humans = None
+        self._prediction = None
         if prediction is not None:
-            self._humans = self.DeclareAbstractInputPort(
-                "human_estimate", AbstractValue.Make(HumanEstimate())
+            self._prediction = self.DeclareAbstractInputPort(
+                "human_prediction", AbstractValue.Make(HumanPrediction())
             )
         self._state = self.DeclareAbstractState(
             AbstractValue.Make(self.controller.InitialState())
@@ -73,14 +76,21 @@ class HierarchicalMpc(LeafSystem):
         self.DeclarePeriodicUnrestrictedUpdateEvent(
             self.controller.period, 0.0, self._Update
         )
-        self.DeclareVectorOutputPort("command", 2 * self._m, self._CalcCommand)
+        state_only = {self.abstract_state_ticket(self._state)}
+        self.DeclareVectorOutputPort(
+            "command", 2 * self._m, self._CalcCommand, state_only
+        )
         self.DeclareAbstractOutputPort(
-            "plan", lambda: AbstractValue.Make(MpcPlan()), self._CalcPlan
+            "plan",
+            lambda: AbstractValue.Make(MpcPlan()),
+            self._CalcPlan,
+            state_only,
         )
         self.DeclareAbstractOutputPort(
             "controller_state",
             lambda: AbstractValue.Make(ControllerState()),
             self._CalcControllerState,
+            state_only,
         )
 
     def _Update(self, context, state):
@@ -93,19 +103,21 @@ class HierarchicalMpc(LeafSystem):
             q0=x[: self._n],
             nu0=x[self._n :],
             targets=refs.targets,
-            humans=None if self._humans is None else self._humans.Eval(context),
+            prediction=None
+            if self._prediction is None
+            else self._prediction.Eval(context),
         )
         state.get_mutable_abstract_state(self._state).set_value(new)
 
-    def _Get(self, context) -> ControllerState:
+    def GetControllerState(self, context) -> ControllerState:
         return context.get_abstract_state(self._state).get_value()
 
     def _CalcCommand(self, context, output):
-        s = self._Get(context)
+        s = self.GetControllerState(context)
         output.SetFromVector(np.concatenate([s.command_u, s.command_nu]))
 
     def _CalcPlan(self, context, output):
-        output.set_value(MpcPlan(self._Get(context).last_solution))
+        output.set_value(self.controller.Plan(self.GetControllerState(context)))
 
     def _CalcControllerState(self, context, output):
-        output.set_value(self._Get(context))
+        output.set_value(self.GetControllerState(context))

@@ -11,7 +11,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
 
 from sm2ith_drake.humans.crowd import InitialCrowdState, StepCrowd
-from sm2ith_drake.humans.messages import HumanDetections, HumanEstimate
+from sm2ith_drake.humans.messages import HumanDetections, HumanEstimate, HumanIntents
 from sm2ith_drake.humans.tracking import HumanTracks
 
 
@@ -25,10 +25,12 @@ class CrowdSimulator(LeafSystem):
         - robot_state
         output_ports:
         - human_truth
+        - human_intents
 
     ``human_truth`` is a HumanEstimate with the true positions and
-    velocities (ids 0 … H−1, in scenario order), and the preferred velocities
-    of the people who walk as the prediction model says (NaN for the rest).
+    velocities (ids 0 … H−1, in scenario order); ``human_intents`` (a
+    HumanIntents, for the predictor's simulation-only input) the preferred
+    velocities of the people who walk as the prediction model says (NaN for the rest).
     """
 
     def __init__(
@@ -59,6 +61,11 @@ class CrowdSimulator(LeafSystem):
         self.DeclarePeriodicUnrestrictedUpdateEvent(self._dt, 0.0, self._Step)
         self.DeclareAbstractOutputPort(
             "human_truth", lambda: AbstractValue.Make(HumanEstimate()), self._Output
+        )
+        self.DeclareAbstractOutputPort(
+            "human_intents",
+            lambda: AbstractValue.Make(HumanIntents()),
+            self._OutputIntents,
         )
 
     def _Step(self, context, state):
@@ -91,6 +98,14 @@ class CrowdSimulator(LeafSystem):
                 ids=np.arange(len(self._humans)),
                 positions=crowd.positions,
                 velocities=crowd.velocities,
+            )
+        )
+
+    def _OutputIntents(self, context, output):
+        crowd = context.get_abstract_state(self._state).get_value()
+        output.set_value(
+            HumanIntents(
+                ids=np.arange(len(self._humans)),
                 preferred_velocities=crowd.preferred,
             )
         )

@@ -49,7 +49,12 @@ class RunLogger(LeafSystem):
         - task_references
         - controller_state
 
-    The log lives in the Context (see :meth:`GetLog`).
+    The log lives in the Context (see :meth:`GetLog`) and is recorded by a
+    periodic unrestricted update. Drake deep-copies abstract state at every
+    update; the state here is a :class:`_LogView` (how many samples of a
+    shared, append-only log this Context has seen), whose copy is O(1), so a
+    long run does not copy its whole log at every sample. A cloned Context
+    that diverges from its original gets its own log on its first sample.
     """
 
     def __init__(
@@ -82,14 +87,15 @@ class RunLogger(LeafSystem):
             self._humans = self.DeclareAbstractInputPort(
                 "human_truth", AbstractValue.Make(HumanEstimate())
             )
-        self._log = self.DeclareAbstractState(AbstractValue.Make(RunLog()))
-        self.DeclarePeriodicPublishEvent(period, 0.0, self._Record)
+        self._log = self.DeclareAbstractState(AbstractValue.Make(_LogView(RunLog())))
+        self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._Record)
 
     def GetLog(self, context) -> RunLog:
-        return context.get_abstract_state(self._log).get_value()
+        """The run's log as this Context has recorded it."""
+        return context.get_abstract_state(self._log).get_value().Log()
 
-    def _Record(self, context):
-        log = self.GetLog(context)
+    def _Record(self, context, state):
+        log = context.get_abstract_state(self._log).get_value().Writable()
         x = np.array(self._x.Eval(context))
         q = x[: self._n]
         kin = self._robot.CalcKinematics(q[None, :])
@@ -112,14 +118,15 @@ class RunLogger(LeafSystem):
             log.human_velocities.append(np.array(truth.velocities))
         if self._max_samples and len(log.times) > self._max_samples:
             _DropOldest(log, len(log.times) - (3 * self._max_samples) // 4)
-        if ctrl.counters.steps == len(log.records) + log.dropped_records:
-            return  # no control step since the last sample (the initial one)
-        log.records.append(ctrl.record)
-        sol = ctrl.last_solution
-        if sol is not None and ctrl.record.mode == "solved":
-            log.stage_errors.append([dict(s.errors) for s in sol.stages])
-        else:
-            log.stage_errors.append(None)
+        if ctrl.counters.steps != len(log.records) + log.dropped_records:
+            # A control step since the last sample (not the initial one).
+            log.records.append(ctrl.record)
+            sol = ctrl.last_solution
+            if sol is not None and ctrl.record.mode == "solved":
+                log.stage_errors.append([dict(s.errors) for s in sol.stages])
+            else:
+                log.stage_errors.append(None)
+        state.get_mutable_abstract_state(self._log).set_value(_LogView(log))
 
 
 def _DropOldest(log: RunLog, count: int) -> None:
@@ -137,3 +144,72 @@ def _DropOldest(log: RunLog, count: int) -> None:
     del log.stage_errors[:records]
     log.dropped_samples += count
     log.dropped_records += records
+
+
+class _LogView:
+    """A Context's view of an append-only RunLog: the log and how far this
+    Context has recorded it. Copies share the log (Drake copies abstract
+    state at every update); a copy that records after another has moved on
+    first takes its own copy of what it has seen."""
+
+    def __init__(self, log: RunLog):
+        self._log = log
+        self._mark = _Mark(log)
+        self._counters = log.counters
+
+    def __deepcopy__(self, memo):
+        view = _LogView.__new__(_LogView)
+        view._log, view._mark = self._log, self._mark
+        view._counters = self._counters
+        return view
+
+    def Log(self) -> RunLog:
+        """The log as this view has seen it."""
+        if _Mark(self._log) == self._mark:
+            return self._log
+        return self._Fork()
+
+    def Writable(self) -> RunLog:
+        """The log to append to: the shared one if nobody else has moved it
+        on since this view, else this view's own copy."""
+        return self.Log()
+
+    def _Fork(self) -> RunLog:
+        samples, records, dropped_samples, dropped_records, counters = self._mark
+        log = self._log
+        if (log.dropped_samples, log.dropped_records) != (
+            dropped_samples,
+            dropped_records,
+        ):
+            raise RuntimeError(
+                "RunLogger: a bounded log (max_samples) cannot be forked "
+                "after it dropped samples"
+            )
+        keep = samples - dropped_samples
+        own = RunLog(
+            times=log.times[:keep],
+            states=log.states[:keep],
+            p_WE=log.p_WE[:keep],
+            task_errors={k: v[:keep] for k, v in log.task_errors.items()},
+            phases=log.phases[:keep],
+            records=log.records[: records - dropped_records],
+            stage_errors=log.stage_errors[: records - dropped_records],
+            human_positions=log.human_positions[:keep],
+            human_velocities=log.human_velocities[:keep],
+            counters=self._counters,
+            dropped_samples=dropped_samples,
+            dropped_records=dropped_records,
+        )
+        self._log, self._mark = own, _Mark(own)
+        return own
+
+
+def _Mark(log: RunLog) -> tuple:
+    """How far a log has been recorded (total samples and records ever, and
+    what was dropped)."""
+    return (
+        len(log.times) + log.dropped_samples,
+        len(log.records) + log.dropped_records,
+        log.dropped_samples,
+        log.dropped_records,
+    )

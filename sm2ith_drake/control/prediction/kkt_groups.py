@@ -3,6 +3,8 @@ primal feasibility, relaxed complementarity and the human dynamics of every
 human's relaxed-ORCA QP, as ConstraintGroups with fixed patterns.
 """
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from sm2ith_drake.control.groups import BlockPattern, ConstraintGroup
@@ -13,7 +15,7 @@ def KktTerms(pred, z, v, n, rho, no, rho_o):
     cfg = pred.config
     a = z[pred.a]  # (N, H, 2)
     lam = z[pred.lam]  # (N, H, R)
-    A = pred.A
+    A = pred.num_agent_lines
     lam_s, lam_a = lam[..., 0], lam[..., 1]
     lam_i, lam_o = lam[..., 2 : 2 + A], lam[..., 2 + A :]
     stat = (
@@ -37,6 +39,27 @@ def KktTerms(pred, z, v, n, rho, no, rho_o):
     return stat, c, lam * c
 
 
+@dataclass
+class KktPointData:
+    """The KKT terms at one linearization point and their ingredients."""
+
+    point: object  # the LinearizationPoint these are of
+    v: np.ndarray  # human velocities v_k (N, H, 2)
+    n: np.ndarray  # agent line normals (N, H, A, 2)
+    rho: np.ndarray  # agent line offsets (N, H, A)
+    no: np.ndarray  # static line normals (N, H, S, 2)
+    rho_o: np.ndarray  # static line offsets (N, H, S)
+    dn: np.ndarray  # ∂n w.r.t. own p, own v, other p, other v (N, H, A, 2, 8)
+    drho: np.ndarray  # ∂ρ likewise (N, H, A, 8)
+    dno: np.ndarray  # ∂n_o w.r.t. own p (N, H, S, 2, 2)
+    drho_o: np.ndarray  # ∂ρ_o w.r.t. own p (N, H, S, 2)
+    stat: np.ndarray  # stationarity residual (N, H, 2)
+    c: np.ndarray  # primal constraints (N, H, R)
+    lc: np.ndarray  # complementarity λ·c (N, H, R)
+    robot: object  # the RobotView
+    body: object  # the NearestBody of every (step, person)
+
+
 class KktBlocks:
     """The local columns of every (k, j) block, shared by both KKT groups,
     and the derivatives at a point (computed once per point).
@@ -51,26 +74,26 @@ class KktBlocks:
     def __init__(self, pred, layout):
         self.pred = pred
         self.layout = layout
-        self.R = pred.R
+        self.num_multipliers = pred.num_multipliers
         self.n = pred.robot.num_positions
         self.nb = 3 if pred.robot.base_kind == "holonomic" else 2
         self.ilam = 2
-        self.io = 2 + self.R  # own p, then own v
+        self.io = 2 + self.num_multipliers  # own p, then own v
         self.inb = self.io + 4  # neighbour i: inb + 4i … inb + 4i + 3
-        self.iq = self.inb + 4 * pred.K
+        self.iq = self.inb + 4 * pred.num_neighbors
         self.inu = self.iq + self.n
         self.width = self.inu + self.nb
         self.groups = []
-        self._cache = {"key": None}
+        self._cache = None
         self.columns = self._Columns()
 
     def _Columns(self):
         """(N, H, width) global column of every local column (−1: constant)."""
         pred, layout = self.pred, self.layout
-        N, H, K = pred.N, pred.H, pred.K
+        N, H, K = pred.N, pred.num_slots, pred.num_neighbors
         C = np.full((N, H, self.width), -1, dtype=int)
         C[:, :, 0:2] = pred.a
-        C[:, :, self.ilam : self.ilam + self.R] = pred.lam
+        C[:, :, self.ilam : self.ilam + self.num_multipliers] = pred.lam
         C[:, :, self.io : self.io + 2] = pred.p[:-1]
         C[1:, :, self.io + 2 : self.io + 4] = pred.a[:-1]
         for i in range(K if pred.config.neighbor_derivatives else 0):
@@ -85,7 +108,7 @@ class KktBlocks:
     def UpdatePattern(self):
         """After the neighbour sets changed: new columns, new patterns."""
         self.columns = self._Columns()
-        self._cache = {"key": None}
+        self._cache = None
         for group in self.groups:
             group.UpdatePattern()
 
@@ -93,7 +116,7 @@ class KktBlocks:
         """The structural nonzeros of ``mask`` (rows, width) in every block:
         (rows, cols, gather) with ``gather`` the flat index of each value in
         a dense (N, H, rows, width) array of local Jacobians."""
-        N, H = self.pred.N, self.pred.H
+        N, H = self.pred.N, self.pred.num_slots
         rr, cc = np.nonzero(mask)
         cols = self.columns[:, :, cc]  # (N, H, nnz)
         block = np.arange(N * H).reshape(N, H)[..., None]
@@ -111,13 +134,13 @@ class KktBlocks:
         body's point moves with q and with the person's position
         (NearestBodies); both move with the base's world velocity G(q)ν,
         which depends on θ and ν_base."""
-        pred, K = self.pred, self.pred.K
+        pred, K = self.pred, self.pred.num_neighbors
         J[:, :, rows, self.io : self.io + 4] += dX_own
         J[:, :, rows, self.inb : self.iq] += dX_other[..., :K, :].reshape(
             dX_other.shape[:3] + (4 * K,)
         )
         base, body = dX_other[..., K, :], dX_other[..., K + 1, :]  # (N,H,r,4)
-        nearest = e["body"]
+        nearest = e.body
         J[:, :, rows, self.iq : self.iq + 2] += base[..., 0:2]
         J[:, :, rows, self.iq : self.inu] += np.einsum(
             "khri,khin->khrn", body[..., 0:2], nearest.d_dq
@@ -126,22 +149,34 @@ class KktBlocks:
             "khri,khij->khrj", body[..., 0:2], nearest.d_dp
         )
         drv = base[..., 2:4] + body[..., 2:4]  # w.r.t. the base's velocity
-        q, nu = e["robot"].q, e["robot"].nu
+        q, nu = e.robot.q, e.robot.nu
         for k in range(pred.N):
             G = pred.robot.G(q[k])[:2, : self.nb]
             dth = pred.robot.dGnu_dq(q[k], nu[k])[:2, 2]
             J[k, :, rows, self.iq + 2] += drv[k] @ dth
             J[k, :, rows, self.inu :] += drv[k] @ G
 
-    def Evaluate(self, point):
+    def Evaluate(self, point) -> "KktPointData":
         """Everything both groups need at a point, cached by the point."""
-        if self._cache["key"] is point:
+        if self._cache is not None and self._cache.point is point:
             return self._cache
         pred, layout = self.pred, self.layout
         z = point.z
         p = z[pred.p[:-1]]
-        v = pred._HumanVelocities(z)
-        robot = pred._RobotView(z, layout, point.kin)
+        v = pred.HumanVelocities(z)
+        robot = pred.RobotViewOf(z, layout, point.kin)
+        planes, derivatives, body = pred.HalfPlaneDerivatives(p, v, robot)
+        n, rho, no, rho_o = planes
+        stat, c, lc = KktTerms(pred, z, v, n, rho, no, rho_o)
+        self._cache = KktPointData(
+            point, v, *planes, *derivatives, stat, c, lc, robot, body
+        )
+        return self._cache
+        pred, layout = self.pred, self.layout
+        z = point.z
+        p = z[pred.p[:-1]]
+        v = pred.HumanVelocities(z)
+        robot = pred.RobotViewOf(z, layout, point.kin)
         (n, rho, no, rho_o), (dn, drho, dno, drho_o), body = pred.HalfPlaneDerivatives(
             p, v, robot
         )
@@ -174,7 +209,7 @@ class KktEqualities(ConstraintGroup):
     def __init__(self, pred, blocks):
         self.pred = pred
         self.blocks = blocks
-        N, H = pred.N, pred.H
+        N, H = pred.N, pred.num_slots
         self.num_kkt = N * H * 2
         self.num_rows = self.num_kkt + N * H * 2
         b = blocks
@@ -200,22 +235,22 @@ class KktEqualities(ConstraintGroup):
         pred, b = self.pred, self.blocks
         e = b.Evaluate(point)
         z = point.z
-        N, H, A, R = pred.N, pred.H, pred.A, b.R
+        N, H, A, R = pred.N, pred.num_slots, pred.num_agent_lines, b.num_multipliers
         a, lam = z[pred.a], z[pred.lam]
-        v = e["v"]
+        v = e.v
         J = np.zeros((N, H, 2, b.width))
         eye = np.eye(2)
         J[:, :, :, 0:2] = (2 + 2 * lam[..., 0] + 2 * lam[..., 1])[..., None, None] * eye
         il = b.ilam
         J[:, :, :, il] = 2 * a
         J[:, :, :, il + 1] = 2 * (a - v)
-        J[:, :, :, il + 2 : il + 2 + A] = -np.swapaxes(e["n"], -1, -2)
-        J[:, :, :, il + 2 + A : il + R] = -np.swapaxes(e["no"], -1, -2)
+        J[:, :, :, il + 2 : il + 2 + A] = -np.swapaxes(e.n, -1, -2)
+        J[:, :, :, il + 2 + A : il + R] = -np.swapaxes(e.no, -1, -2)
         # −Σ λ_i ∂n_i/∂x − Σ λ_o ∂n_o/∂x, and −2λ_a ∂v/∂v_own.
         lam_i = lam[..., 2 : 2 + A]
-        dn = e["dn"]  # (N, H, A, 2, 8)
+        dn = e.dn  # (N, H, A, 2, 8)
         dX_own = -np.einsum("khi,khidx->khdx", lam_i, dn[..., :4])
-        dX_own[..., 0:2] -= np.einsum("kho,khodx->khdx", lam[..., 2 + A :], e["dno"])
+        dX_own[..., 0:2] -= np.einsum("kho,khodx->khdx", lam[..., 2 + A :], e.dno)
         dX_own[..., 2:4] -= 2 * lam[..., 1, None, None] * eye
         dX_other = -np.einsum("khi,khidx->khdix", lam_i, dn[..., 4:])
         b.StateDerivatives(J, slice(0, 2), dX_own, dX_other, e)
@@ -224,7 +259,7 @@ class KktEqualities(ConstraintGroup):
         g_dyn = p[1:] - p[:-1] - pred.dt * a
         block = np.concatenate([eye, -eye, -pred.dt * eye], axis=1)  # (2, 6)
         vals_dyn = np.broadcast_to(block, (N, H, 2, 6)).reshape(-1)
-        g = np.concatenate([e["stat"].reshape(-1), g_dyn.reshape(-1)])
+        g = np.concatenate([e.stat.reshape(-1), g_dyn.reshape(-1)])
         return g, np.concatenate([J.reshape(-1)[self._gather], vals_dyn])
 
 
@@ -237,8 +272,8 @@ class KktInequalities(ConstraintGroup):
     def __init__(self, pred, blocks):
         self.pred = pred
         self.blocks = blocks
-        N, H, A, K = pred.N, pred.H, pred.A, pred.K
-        b, R = blocks, blocks.R
+        N, H, A, K = pred.N, pred.num_slots, pred.num_agent_lines, pred.num_neighbors
+        b, R = blocks, blocks.num_multipliers
         self.ri = 2 * R
         self.num_rows = N * H * self.ri
         primal = np.zeros((R, b.width), dtype=bool)
@@ -267,10 +302,10 @@ class KktInequalities(ConstraintGroup):
         self.rows, self.cols, self._gather = self.blocks.Pattern(self.mask, self.ri)
 
     def Bounds(self, eps):
-        R = self.blocks.R
+        R = self.blocks.num_multipliers
         lo = np.concatenate([np.full(R, -np.inf), np.full(R, -eps)])
         hi = np.concatenate([np.zeros(R), np.full(R, np.inf)])
-        count = self.pred.N * self.pred.H
+        count = self.pred.N * self.pred.num_slots
         return np.tile(lo, count), np.tile(hi, count)
 
     def Eval(self, point):
@@ -278,33 +313,31 @@ class KktInequalities(ConstraintGroup):
         e = b.Evaluate(point)
         z = point.z
         cfg = pred.config
-        N, H, A, R = pred.N, pred.H, pred.A, b.R
+        N, H, A, R = pred.N, pred.num_slots, pred.num_agent_lines, b.num_multipliers
         a, lam = z[pred.a], z[pred.lam]
-        v, c = e["v"], e["c"]
+        v, c = e.v, e.c
         il = b.ilam
         dc = np.zeros((N, H, R, b.width))
         dc[:, :, 0, 0:2] = 2 * a
         dc[:, :, 1, 0:2] = 2 * (a - v)
         dc[:, :, 1, il + 1] = -0.5 / cfg.slack_weight_acceleration
         dc[:, :, 1, b.io + 2 : b.io + 4] = -2 * (a - v)
-        dc[:, :, 2 : 2 + A, 0:2] = -e["n"]
-        dc[:, :, 2 + A :, 0:2] = -e["no"]
+        dc[:, :, 2 : 2 + A, 0:2] = -e.n
+        dc[:, :, 2 + A :, 0:2] = -e.no
         dc[:, :, np.arange(2, 2 + A), il + np.arange(2, 2 + A)] = (
             -0.5 / cfg.slack_weight_velocity
         )
         # Agent line i: ∂(ρ_i − n_iᵀa)/∂x through its own and other state.
-        dX = e["drho"] - np.einsum("khidx,khd->khix", e["dn"], a)  # (N,H,A,8)
+        dX = e.drho - np.einsum("khidx,khd->khix", e.dn, a)  # (N,H,A,8)
         dX_own = np.zeros((N, H, R, 4))
         dX_own[:, :, 2 : 2 + A] = dX[..., :4]
-        dX_own[:, :, 2 + A :, 0:2] = e["drho_o"] - np.einsum(
-            "khodx,khd->khox", e["dno"], a
-        )
+        dX_own[:, :, 2 + A :, 0:2] = e.drho_o - np.einsum("khodx,khd->khox", e.dno, a)
         dX_other = np.zeros((N, H, R, A, 4))
         dX_other[:, :, np.arange(2, 2 + A), np.arange(A)] = dX[..., 4:]
         b.StateDerivatives(dc, slice(0, R), dX_own, dX_other, e)
         # Complementarity λ_r c_r.
         dlc = lam[..., None] * dc
         dlc[:, :, np.arange(R), il + np.arange(R)] += c
-        g = np.concatenate([c, e["lc"]], axis=-1)
+        g = np.concatenate([c, e.lc], axis=-1)
         J = np.concatenate([dc, dlc], axis=2)
         return g.reshape(-1), J.reshape(-1)[self._gather]

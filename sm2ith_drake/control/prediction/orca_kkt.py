@@ -35,7 +35,7 @@ dynamics p_{k+1} = p_k + Δt a_k, v_{k+1} = a_k. Exact complementarity
 violates the usual constraint qualifications; it is relaxed to λ·c ≥ −ε with
 ε = ``complementarity_relaxation`` (chosen by measurement, see scenario.py).
 
-Agents. As RVO2 (``maxNeighbors``), each human reacts to at most
+Agents (orca_model.py). As RVO2 (``maxNeighbors``), each human reacts to at most
 ``max_neighbors`` other humans: the ones that come closest within the
 horizon at constant velocity, chosen once per control step (an incumbent is
 only replaced by someone closer by ``neighbor_hysteresis``); with
@@ -70,11 +70,9 @@ from sm2ith_drake.control.prediction.kkt_groups import (
     KktInequalities,
     KktTerms,
 )
-from sm2ith_drake.humans.half_planes import obstacle_half_planes, orca_agent_half_planes
-from sm2ith_drake.humans.relaxed_orca import relaxed_orca_actions
-from sm2ith_drake.humans.robot_view import NearestBodies, RobotView
-
-_EPS = 1e-9
+from sm2ith_drake.control.prediction.orca_model import OrcaModel
+from sm2ith_drake.control.prediction.slots import DefaultNeighbors
+from sm2ith_drake.humans.messages import HumanPrediction
 
 
 class OrcaKkt(Predictor):
@@ -87,26 +85,22 @@ class OrcaKkt(Predictor):
     ):
         super().__init__(config, horizon=horizon, time_step=time_step)
         self.robot = robot
-        self.segments = np.asarray(obstacles, dtype=float).reshape(-1, 2, 2)
-        # The radius the people are modelled with (SafetyConfig.human_radius).
-        self.human_radius = float(human_radius)
-        self.robot_radius = robot.model.base_radius
-        H = self.H
-        # Human neighbours per human (RVO2's maxNeighbors), then the robot's
-        # base and its body nearest to the person.
-        self.K = max(0, min(int(config.max_neighbors), H - 1))
-        self.A = self.K + 2  # agent lines per human
-        self.S = len(self.segments)
-        self.R = 2 + self.A + self.S  # constraints (multipliers) per human
-        # neighbors[j]: the humans whose lines human j has (sorted indices).
-        self.neighbors = np.array(
-            [[i for i in range(H) if i != j][: self.K] for j in range(H)], dtype=int
-        ).reshape(H, self.K)
-        # Combined radii (the nearest body's is set per person and step).
-        self._radius = np.full(self.A, 2 * self.human_radius)
-        self._radius[self.K] = self.human_radius + self.robot_radius
-        self._share = np.full(self.A, 0.5)
-        self._share[self.K :] = config.robot_share
+        self.model = OrcaModel(
+            config,
+            horizon=horizon,
+            time_step=time_step,
+            robot=robot,
+            obstacles=obstacles,
+            human_radius=human_radius,
+        )
+        m = self.model
+        self.num_neighbors = m.num_neighbors
+        self.num_agent_lines = m.num_agent_lines
+        self.num_static_lines = m.num_static_lines
+        self.num_multipliers = m.num_multipliers
+        # neighbors[j]: the slots whose lines slot j has (from the prediction).
+        self.neighbors = DefaultNeighbors(self.num_slots, self.num_neighbors)
+        self._warm_start = None
         self._blocks = None
 
     @property
@@ -120,9 +114,9 @@ class OrcaKkt(Predictor):
 
     def AddVariables(self, layout):
         super().AddVariables(layout)
-        N, H = self.N, self.H
+        N, H = self.N, self.num_slots
         self.a = layout.AddVariables("human_a", (N, H, 2))
-        self.lam = layout.AddVariables("human_lambda", (N, H, self.R))
+        self.lam = layout.AddVariables("human_lambda", (N, H, self.num_multipliers))
 
     def ConstraintGroups(self, program):
         self._blocks = KktBlocks(self, program.layout)
@@ -137,169 +131,42 @@ class OrcaKkt(Predictor):
         lower[self.p[0]] = upper[self.p[0]] = self.p0
         lower[self.lam] = 0.0
 
-    def SetHumans(self, estimate, preferred_velocities=None):
-        super().SetHumans(estimate, preferred_velocities)
-        neighbors = self.SelectNeighbors()
+    def SetPrediction(self, prediction: HumanPrediction) -> None:
+        super().SetPrediction(prediction)
+        self._warm_start = prediction
+        neighbors = np.asarray(prediction.neighbors, dtype=int).reshape(
+            self.num_slots, self.num_neighbors
+        )
         if not np.array_equal(neighbors, self.neighbors):
             self.neighbors = neighbors
             if self._blocks is not None:
                 self._blocks.UpdatePattern()
 
-    def SelectNeighbors(self) -> np.ndarray:
-        """Each human's K neighbours: the humans that come closest to it
-        within the horizon if everyone keeps their velocity (active humans
-        before empty slots), incumbents favoured by ``neighbor_hysteresis``
-        so the sets (and the QP's pattern) do not flicker."""
-        H, K = self.H, self.K
-        if K == 0:
-            return np.zeros((H, 0), dtype=int)
-        if K == H - 1:
-            return self.neighbors
-        r = self.p0[None, :] - self.p0[:, None]  # (H, H, 2): i relative to j
-        w = self.v0[None, :] - self.v0[:, None]
-        horizon = self.N * self.dt
-        t = np.clip(
-            -np.sum(r * w, axis=-1) / np.maximum(np.sum(w * w, axis=-1), _EPS),
-            0.0,
-            horizon,
-        )
-        d = np.linalg.norm(r + t[..., None] * w, axis=-1)
-        d[:, ~self.active] += 1e6  # empty slots only as fillers
-        np.fill_diagonal(d, np.inf)
-        rows = np.arange(H)[:, None]
-        d[rows, self.neighbors] -= self.config.neighbor_hysteresis
-        chosen = np.argsort(d, axis=1, kind="stable")[:, :K]
-        return np.sort(chosen, axis=1)
-
     # ---------------------------------------------------------------- model
 
-    def _HumanVelocities(self, z):
+    def HumanVelocities(self, z):
         """v_k of every human for k = 0 … N−1: (N, H, 2)."""
         a = z[self.a]
         return np.concatenate([self.v0[None], a[:-1]], axis=0)
 
-    def RobotView(self, q, nu, kin=None) -> "RobotView":
-        """The robot as the people see it at the configurations q (T, n) and
-        velocities ν (T, m): its base, and its bodies for the nearest-body
-        agent (see _AgentStates). ``kin``: the kinematics of configurations
-        whose first T rows are q, if the caller has them already."""
-        robot = self.robot
-        G = np.stack([robot.G(qk) for qk in q])  # (T, n, m)
-        if kin is None:
-            kin = robot.CalcKinematics(q)
-        T = len(q)
-        return RobotView(
-            q=q,
-            nu=nu,
-            p=q[:, :2],
-            v=np.einsum("knm,km->kn", G[:, :2], nu),
-            ends=kin.capsule_points[:T, ..., :2],
-            ends_jacobian=kin.capsule_jacobians[:T, ..., :2, :],
-            radii=robot.capsule_radii,
-        )
-
-    def _RobotView(self, z, layout, kin=None):
-        return self.RobotView(z[layout.q[:-1]], z[layout.nu[:-1]], kin)
-
-    def _AgentStates(self, positions, velocities, robot):
-        """Each line's own and other agent's states, (T, H, A, 2) each (own
-        p, own v, other p, other v), the combined radii (T, H, A) and the
-        nearest robot bodies. The lines are the K neighbours', the robot
-        base's, and the robot's nearest body's: as the simulated people see
-        the robot (humans/crowd.py), the closest point on the axis of the
-        capsule nearest to the person, moving with the base, so an arm
-        sticking out is avoided too."""
-        T, H, A = positions.shape[0], self.H, self.A
-        shape = (T, H, A, 2)
-        body = NearestBodies(robot, positions)
-        robot_p = np.broadcast_to(robot.p[:, None, None], (T, H, 1, 2))
-        robot_v = np.broadcast_to(robot.v[:, None, None], (T, H, 2, 2))
-        nb = self.neighbors
-        radius = np.empty((T, H, A))
-        radius[:] = self._radius
-        radius[..., -1] = self.human_radius + body.radius
-        states = (
-            np.broadcast_to(positions[:, :, None], shape),
-            np.broadcast_to(velocities[:, :, None], shape),
-            np.concatenate([positions[:, nb], robot_p, body.point[:, :, None]], axis=2),
-            np.concatenate([velocities[:, nb], robot_v], axis=2),
-        )
-        return states, radius, body
-
-    def _AgentLines(self, own_p, own_v, other_p, other_v, radius):
-        return orca_agent_half_planes(
-            own_p,
-            own_v,
-            other_p,
-            other_v,
-            radius,
-            self._share,
-            tau=self.config.tau,
-            time_step=self.dt,
-        )
-
-    def _StaticLines(self, positions):
-        if self.S:
-            return obstacle_half_planes(
-                positions, self.segments, self.human_radius, tau_obs=self.config.tau_obs
-            )
-        T, H = positions.shape[:2]
-        return np.zeros((T, H, 0, 2)), np.zeros((T, H, 0))
+    def RobotViewOf(self, z, layout, kin=None):
+        """The RobotView of z's robot plan, steps 0 … N−1."""
+        return self.model.RobotView(z[layout.q[:-1]], z[layout.nu[:-1]], kin)
 
     def HalfPlanes(self, positions, velocities, robot):
-        """Agent lines (n (T, H, A, 2), ρ (T, H, A)) and static lines
-        (n (T, H, S, 2), ρ (T, H, S)) for human states of shape (T, H, 2)
-        and the RobotView of the same T steps."""
-        states, radius, _ = self._AgentStates(positions, velocities, robot)
-        n, rho = self._AgentLines(*states, radius)
-        return (n, rho) + self._StaticLines(positions)
+        """OrcaModel.HalfPlanes with this step's neighbour sets."""
+        return self.model.HalfPlanes(positions, velocities, robot, self.neighbors)
+
+    def HalfPlaneDerivatives(self, p, v, robot, h=1e-6):
+        """OrcaModel.HalfPlaneDerivatives with this step's neighbour sets."""
+        return self.model.HalfPlaneDerivatives(p, v, robot, self.neighbors, h)
 
     def LocalState(self, z, layout):
         """The states the k-th QPs depend on, k = 0 … N−1: human positions
         and velocities (N, H, 2) and the RobotView."""
         p = z[self.p[:-1]]
-        v = self._HumanVelocities(z)
-        return p, v, self._RobotView(z, layout)
-
-    def HalfPlaneDerivatives(self, p, v, robot, h=1e-6):
-        """Half-planes and their central-difference derivatives.
-
-        Each agent line depends on its own human's state and on one other
-        agent's, so all lines are differenced at once in those 8 inputs:
-        dn (T, H, A, 2, 8), dρ (T, H, A, 8), in the order own p, own v,
-        other p, other v (the nearest body's point is an input here; its
-        own dependence on the configuration and the person's position is
-        applied by the chain rule in KktBlocks). Static lines depend on the
-        own position only: dn_o (T, H, S, 2, 2), dρ_o (T, H, S, 2). Also
-        returns the NearestBodies."""
-        states, radius, body = self._AgentStates(p, v, robot)
-        n, rho = self._AgentLines(*states, radius)
-        no, rho_o = self._StaticLines(p)
-        T, H, A, S = p.shape[0], self.H, self.A, self.S
-        dn = np.zeros((T, H, A, 2, 8))
-        drho = np.zeros((T, H, A, 8))
-        for which in range(4):
-            for c in range(2):
-                pm = []
-                for sign in (1.0, -1.0):
-                    args = list(states)
-                    args[which] = args[which].copy()
-                    args[which][..., c] += sign * h
-                    pm.append(self._AgentLines(*args, radius))
-                dn[..., 2 * which + c] = (pm[0][0] - pm[1][0]) / (2 * h)
-                drho[..., 2 * which + c] = (pm[0][1] - pm[1][1]) / (2 * h)
-        dno = np.zeros((T, H, S, 2, 2))
-        drho_o = np.zeros((T, H, S, 2))
-        if S:
-            for c in range(2):
-                pm = []
-                for sign in (1.0, -1.0):
-                    q = p.copy()
-                    q[..., c] += sign * h
-                    pm.append(self._StaticLines(q))
-                dno[..., c] = (pm[0][0] - pm[1][0]) / (2 * h)
-                drho_o[..., c] = (pm[0][1] - pm[1][1]) / (2 * h)
-        return (n, rho, no, rho_o), (dn, drho, dno, drho_o), body
+        v = self.HumanVelocities(z)
+        return p, v, self.RobotViewOf(z, layout)
 
     def Residuals(self, z, layout):
         """KKT residuals at z (for diagnostics and tests): stationarity (N,
@@ -309,91 +176,50 @@ class OrcaKkt(Predictor):
         n, rho, no, rho_o = self.HalfPlanes(p, v, robot)
         return KktTerms(self, z, v, n, rho, no, rho_o)
 
-    def WarmStart(self, z, previous=None, shift=1):
-        """Human variables of the guess z: a forward simulation of each
-        human's relaxed-ORCA QP along the robot's guess (positions, actions
-        and multipliers: an exact KKT point to linearize at)."""
-        z[self.p[0]] = self.p0
-        self.ForwardSimulate(z, self.layout)
+    def WarmStart(self, z):
+        """Human variables of the guess z: the HumanPredictor's forward
+        simulation of each human's relaxed-ORCA QP along the robot's warm
+        start (positions, actions and multipliers: an exact KKT point to
+        linearize at). Without one (no robot trajectory to simulate
+        against), the humans are simulated here along z's robot plan."""
+        prediction = self._warm_start
+        if prediction is None or prediction.actions is None:
+            z[self.p[0]] = self.p0
+            self.Restore(z)
+            return
+        z[self.p] = prediction.positions
+        z[self.a] = prediction.actions
+        z[self.lam] = prediction.multipliers
 
     def Restore(self, z):
         """The humans' exact relaxed-ORCA responses to z's robot plan, so the
         next SQP pass linearizes the KKT system at a point that satisfies it
         (a pass linearized at the previous QP's inexact KKT point was primal
         infeasible in a quarter of the steps with five people)."""
-        self.ForwardSimulate(z, self.layout)
-
-    def SolveHumanQps(self, humans, v, n, rho, no, rho_o):
-        """The relaxed-ORCA QPs (humans/relaxed_orca.py) of the given humans
-        (B,), batched: their current velocities v (B, 2) and half-planes
-        (agents n (B, A, 2), ρ (B, A); static no (B, S, 2), ρ_o (B, S))."""
-
-        cfg = self.config
-        return relaxed_orca_actions(
-            self.v_pref[humans],
-            v,
-            n,
-            rho,
-            max_speed=cfg.max_speed,
-            max_accel=cfg.max_acceleration,
-            time_step=self.dt,
-            slack_weights=(cfg.slack_weight_acceleration, cfg.slack_weight_velocity),
-            static_normals=no,
-            static_offsets=rho_o,
+        p, a, lam = self.model.ForwardSimulate(
+            self, self.neighbors, self.RobotViewOf(z, self.layout), p0=z[self.p[0]]
         )
-
-    def ForwardSimulate(self, z, layout):
-        """Rolls the humans forward with the standalone relaxed-ORCA QP
-        (humans/relaxed_orca.py), the robot fixed at z's plan; fills a, p, λ."""
-        robot = self._RobotView(z, layout)
-        v = self.v0.copy()
-        active = np.nonzero(self.active)[0]
-        for k in range(self.N):
-            p = z[self.p[k]]
-            n, rho, no, rho_o = self.HalfPlanes(p[None], v[None], robot.Step(k))
-            a = np.zeros((self.H, 2))
-            lam = np.zeros((self.H, self.R))
-            sol = self.SolveHumanQps(
-                active,
-                v[active],
-                n[0, active],
-                rho[0, active],
-                no[0, active],
-                rho_o[0, active],
-            )
-            a[active] = sol.velocity
-            lam[active] = np.concatenate(
-                [
-                    sol.multiplier_speed[:, None],
-                    sol.multiplier_acceleration[:, None],
-                    sol.multipliers_agents,
-                    sol.multipliers_static,
-                ],
-                axis=1,
-            )
-            z[self.a[k]] = a
-            z[self.lam[k]] = lam
-            z[self.p[k + 1]] = p + self.dt * a
-            v = a
+        z[self.p] = p
+        z[self.a] = a
+        z[self.lam] = lam
 
 
 def PredictionConsistency(predictor, z, layout) -> np.ndarray:
     """The honest check of the KKT embedding: re-solve every active human's
     relaxed-ORCA QP at the predicted states of plan z and return
     ‖a_QP − a_predicted‖ for every (k, j) (m/s), shape (N, active)."""
-
     p, v, robot = predictor.LocalState(z, layout)
     n, rho, no, rho_o = predictor.HalfPlanes(p, v, robot)
     a = z[predictor.a]
     active = np.nonzero(predictor.active)[0]
     N, B = predictor.N, len(active)
-    humans = np.tile(active, N)
-    sol = predictor.SolveHumanQps(
-        humans,
+    A, S = predictor.num_agent_lines, predictor.num_static_lines
+    sol = predictor.model.SolveHumanQps(
+        predictor.v_pref[np.tile(active, N)],
         v[:, active].reshape(N * B, 2),
-        n[:, active].reshape(N * B, predictor.A, 2),
-        rho[:, active].reshape(N * B, predictor.A),
-        no[:, active].reshape(N * B, predictor.S, 2),
-        rho_o[:, active].reshape(N * B, predictor.S),
+        n[:, active].reshape(N * B, A, 2),
+        rho[:, active].reshape(N * B, A),
+        no[:, active].reshape(N * B, S, 2),
+        rho_o[:, active].reshape(N * B, S),
     )
     return np.linalg.norm(sol.velocity.reshape(N, B, 2) - a[:, active], axis=-1)

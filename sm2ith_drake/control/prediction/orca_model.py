@@ -1,0 +1,232 @@
+"""The people's relaxed-ORCA model as SM²ITH predicts them (eq.
+relaxed_orca_acc_argmin), on arrays: the ORCA half-planes of every person at
+every step, their derivatives, the batched QPs, and the forward simulation
+of everyone against a robot trajectory.
+
+Each person has the lines of its K neighbours (RVO2's ``maxNeighbors``), of
+the robot's base, and of the robot's body nearest to it (humans/robot_view.py,
+as the simulated people see the robot, so an outstretched arm is avoided
+too), and one line per static wall segment.
+"""
+
+import numpy as np
+
+from sm2ith_drake.humans.half_planes import obstacle_half_planes, orca_agent_half_planes
+from sm2ith_drake.humans.relaxed_orca import relaxed_orca_actions
+from sm2ith_drake.humans.robot_view import NearestBodies, RobotView
+
+
+class OrcaModel:
+    """The relaxed-ORCA prediction model of H human slots (module doc)."""
+
+    def __init__(
+        self,
+        config,
+        *,
+        horizon: int,
+        time_step: float,
+        robot,
+        obstacles=(),
+        human_radius: float = 0.3,
+    ):
+        """``config`` is a PredictionConfig; ``obstacles`` (S, 2, 2) wall
+        segments; ``human_radius`` the radius people are modelled with."""
+        self.config = config
+        self.N = horizon
+        self.dt = time_step
+        self.robot = robot
+        self.num_slots = H = int(config.max_humans)
+        self.segments = np.asarray(obstacles, dtype=float).reshape(-1, 2, 2)
+        self.human_radius = float(human_radius)
+        self.robot_radius = robot.model.base_radius
+        # Human neighbours per human, then the robot's base and its body
+        # nearest to the person; then one line per static segment.
+        self.num_neighbors = max(0, min(int(config.max_neighbors), H - 1))
+        self.num_agent_lines = self.num_neighbors + 2
+        self.num_static_lines = len(self.segments)
+        # Constraints (multipliers) per human: speed, acceleration, lines.
+        self.num_multipliers = 2 + self.num_agent_lines + self.num_static_lines
+        K = self.num_neighbors
+        # Combined radii (the nearest body's is set per person and step).
+        self._radius = np.full(self.num_agent_lines, 2 * self.human_radius)
+        self._radius[K] = self.human_radius + self.robot_radius
+        self._share = np.full(self.num_agent_lines, 0.5)
+        self._share[K:] = config.robot_share
+
+    def RobotView(self, q, nu, kin=None) -> RobotView:
+        """The robot as the people see it at the configurations q (T, n) and
+        velocities ν (T, m): its base, and its bodies for the nearest-body
+        agent. ``kin``: the kinematics of configurations whose first T rows
+        are q, if the caller has them already."""
+        robot = self.robot
+        G = np.stack([robot.G(qk) for qk in q])  # (T, n, m)
+        if kin is None:
+            kin = robot.CalcKinematics(q)
+        T = len(q)
+        return RobotView(
+            q=q,
+            nu=nu,
+            p=q[:, :2],
+            v=np.einsum("knm,km->kn", G[:, :2], nu),
+            ends=kin.capsule_points[:T, ..., :2],
+            ends_jacobian=kin.capsule_jacobians[:T, ..., :2, :],
+            radii=robot.capsule_radii,
+        )
+
+    def AgentStates(self, positions, velocities, robot: RobotView, neighbors):
+        """Each line's own and other agent's states, (T, H, A, 2) each (own
+        p, own v, other p, other v), the combined radii (T, H, A) and the
+        nearest robot bodies. The lines are the K neighbours', the robot
+        base's, and the robot's nearest body's: the closest point on the
+        axis of the capsule nearest to the person, moving with the base."""
+        T, H, A = positions.shape[0], self.num_slots, self.num_agent_lines
+        shape = (T, H, A, 2)
+        body = NearestBodies(robot, positions)
+        robot_p = np.broadcast_to(robot.p[:, None, None], (T, H, 1, 2))
+        robot_v = np.broadcast_to(robot.v[:, None, None], (T, H, 2, 2))
+        nb = neighbors
+        radius = np.empty((T, H, A))
+        radius[:] = self._radius
+        radius[..., -1] = self.human_radius + body.radius
+        states = (
+            np.broadcast_to(positions[:, :, None], shape),
+            np.broadcast_to(velocities[:, :, None], shape),
+            np.concatenate([positions[:, nb], robot_p, body.point[:, :, None]], axis=2),
+            np.concatenate([velocities[:, nb], robot_v], axis=2),
+        )
+        return states, radius, body
+
+    def AgentLines(self, own_p, own_v, other_p, other_v, radius):
+        """ORCA agent half-planes (n, ρ) of the given states (AgentStates)."""
+        return orca_agent_half_planes(
+            own_p,
+            own_v,
+            other_p,
+            other_v,
+            radius,
+            self._share,
+            tau=self.config.tau,
+            time_step=self.dt,
+        )
+
+    def StaticLines(self, positions):
+        """Static half-planes (n (T, H, S, 2), ρ (T, H, S))."""
+        if self.num_static_lines:
+            return obstacle_half_planes(
+                positions, self.segments, self.human_radius, tau_obs=self.config.tau_obs
+            )
+        T, H = positions.shape[:2]
+        return np.zeros((T, H, 0, 2)), np.zeros((T, H, 0))
+
+    def HalfPlanes(self, positions, velocities, robot: RobotView, neighbors):
+        """Agent lines (n (T, H, A, 2), ρ (T, H, A)) and static lines
+        (n (T, H, S, 2), ρ (T, H, S)) for human states of shape (T, H, 2)
+        and the RobotView of the same T steps."""
+        states, radius, _ = self.AgentStates(positions, velocities, robot, neighbors)
+        n, rho = self.AgentLines(*states, radius)
+        return (n, rho) + self.StaticLines(positions)
+
+    def HalfPlaneDerivatives(self, p, v, robot: RobotView, neighbors, h=1e-6):
+        """Half-planes and their central-difference derivatives.
+
+        Each agent line depends on its own human's state and on one other
+        agent's, so all lines are differenced at once in those 8 inputs:
+        dn (T, H, A, 2, 8), dρ (T, H, A, 8), in the order own p, own v,
+        other p, other v (the nearest body's point is an input here; its
+        own dependence on the configuration and the person's position is
+        applied by the chain rule in KktBlocks). Static lines depend on the
+        own position only: dn_o (T, H, S, 2, 2), dρ_o (T, H, S, 2). Also
+        returns the NearestBodies."""
+        states, radius, body = self.AgentStates(p, v, robot, neighbors)
+        n, rho = self.AgentLines(*states, radius)
+        no, rho_o = self.StaticLines(p)
+        T, H = p.shape[0], self.num_slots
+        A, S = self.num_agent_lines, self.num_static_lines
+        dn = np.zeros((T, H, A, 2, 8))
+        drho = np.zeros((T, H, A, 8))
+        for which in range(4):
+            for c in range(2):
+                pm = []
+                for sign in (1.0, -1.0):
+                    args = list(states)
+                    args[which] = args[which].copy()
+                    args[which][..., c] += sign * h
+                    pm.append(self.AgentLines(*args, radius))
+                dn[..., 2 * which + c] = (pm[0][0] - pm[1][0]) / (2 * h)
+                drho[..., 2 * which + c] = (pm[0][1] - pm[1][1]) / (2 * h)
+        dno = np.zeros((T, H, S, 2, 2))
+        drho_o = np.zeros((T, H, S, 2))
+        if S:
+            for c in range(2):
+                pm = []
+                for sign in (1.0, -1.0):
+                    q = p.copy()
+                    q[..., c] += sign * h
+                    pm.append(self.StaticLines(q))
+                dno[..., c] = (pm[0][0] - pm[1][0]) / (2 * h)
+                drho_o[..., c] = (pm[0][1] - pm[1][1]) / (2 * h)
+        return (n, rho, no, rho_o), (dn, drho, dno, drho_o), body
+
+    def SolveHumanQps(self, v_pref, v, n, rho, no, rho_o):
+        """The relaxed-ORCA QPs (humans/relaxed_orca.py) of B humans,
+        batched: their preferred and current velocities v_pref, v (B, 2) and
+        half-planes (agents n (B, A, 2), ρ (B, A); static no (B, S, 2),
+        ρ_o (B, S))."""
+        cfg = self.config
+        return relaxed_orca_actions(
+            v_pref,
+            v,
+            n,
+            rho,
+            max_speed=cfg.max_speed,
+            max_accel=cfg.max_acceleration,
+            time_step=self.dt,
+            slack_weights=(cfg.slack_weight_acceleration, cfg.slack_weight_velocity),
+            static_normals=no,
+            static_offsets=rho_o,
+        )
+
+    def ForwardSimulate(self, slots, neighbors, robot: RobotView, p0=None):
+        """Rolls the humans in ``slots`` (a HumanSlots) forward with the
+        standalone relaxed-ORCA QP against the robot's trajectory ``robot``
+        (a RobotView of steps 0 … N−1). Returns positions (N+1, H, 2),
+        actions (N, H, 2) and multipliers (N, H, R): an exact KKT point of
+        every human's QP. ``p0`` overrides the slots' start positions."""
+        N, H, R = self.N, self.num_slots, self.num_multipliers
+        positions = np.empty((N + 1, H, 2))
+        actions = np.empty((N, H, 2))
+        multipliers = np.empty((N, H, R))
+        positions[0] = slots.p0 if p0 is None else p0
+        v = slots.v0.copy()
+        active = np.nonzero(slots.active)[0]
+        v_pref = slots.v_pref[active]
+        for k in range(N):
+            p = positions[k]
+            n, rho, no, rho_o = self.HalfPlanes(
+                p[None], v[None], robot.Step(k), neighbors
+            )
+            a = np.zeros((H, 2))
+            lam = np.zeros((H, R))
+            sol = self.SolveHumanQps(
+                v_pref,
+                v[active],
+                n[0, active],
+                rho[0, active],
+                no[0, active],
+                rho_o[0, active],
+            )
+            a[active] = sol.velocity
+            lam[active] = np.concatenate(
+                [
+                    sol.multiplier_speed[:, None],
+                    sol.multiplier_acceleration[:, None],
+                    sol.multipliers_agents,
+                    sol.multipliers_static,
+                ],
+                axis=1,
+            )
+            actions[k] = a
+            multipliers[k] = lam
+            positions[k + 1] = p + self.dt * a
+            v = a
+        return positions, actions, multipliers

@@ -1,0 +1,152 @@
+"""The human predictor as a pure function of (state, inputs): the math behind
+the HumanPredictor system.
+
+Each control step it filters the people's preferred velocities, keeps them in
+their slots, chooses each person's ORCA neighbours, and predicts everyone's
+motion over the horizon under the configured model:
+
+- ``react``: held where they are (no prediction);
+- ``cvmm``: constant velocity;
+- ``orca_kkt``: every person's relaxed-ORCA QP forward-simulated against
+  the robot's warm-start plan (the previous plan shifted, rolled out from
+  the measured state). This is the warm start and the structure the MPC's
+  KKT embedding then refines jointly with the robot's plan (eq. smith).
+"""
+
+import numpy as np
+
+from sm2ith_drake.control.prediction.base import (
+    ConstantVelocityPrediction,
+    HeldPrediction,
+)
+from sm2ith_drake.control.prediction.orca_model import OrcaModel
+from sm2ith_drake.control.prediction.slots import (
+    AssignSlots,
+    DefaultNeighbors,
+    FilterPreferredVelocities,
+    PredictorState,
+    SelectNeighbors,
+)
+from sm2ith_drake.control.robot_groups import Rollout
+from sm2ith_drake.humans.messages import HumanEstimate, HumanIntents, HumanPrediction
+from sm2ith_drake.scenario import PREDICTORS
+
+
+class HumanPredictorModel:
+    """Predicts the people for the MPC (module doc)."""
+
+    def __init__(
+        self,
+        config,
+        *,
+        horizon: int,
+        time_step: float,
+        control_period: float,
+        robot,
+        obstacles=(),
+        human_radius: float = 0.3,
+    ):
+        """``config`` is a PredictionConfig; ``horizon``, ``time_step`` are
+        the MPC's; ``obstacles`` (S, 2, 2) wall segments."""
+        if config.predictor not in PREDICTORS:
+            raise ValueError(f"unknown predictor '{config.predictor}'")
+        self.config = config
+        self.N = horizon
+        self.dt = time_step
+        self.robot = robot
+        self.num_slots = int(config.max_humans)
+        tau = config.preferred_velocity_time_constant
+        self._alpha = 1.0 if tau <= 0 else control_period / (tau + control_period)
+        self.orca = None
+        num_neighbors = 0
+        if config.predictor == "orca_kkt":
+            self.orca = OrcaModel(
+                config,
+                horizon=horizon,
+                time_step=time_step,
+                robot=robot,
+                obstacles=obstacles,
+                human_radius=human_radius,
+            )
+            num_neighbors = self.orca.num_neighbors
+        self._initial_neighbors = DefaultNeighbors(self.num_slots, num_neighbors)
+
+    def InitialState(self) -> PredictorState:
+        return PredictorState(
+            slot_ids=np.full(self.num_slots, -1),
+            neighbors=self._initial_neighbors.copy(),
+        )
+
+    def Predict(
+        self,
+        state: PredictorState,
+        *,
+        estimate: HumanEstimate | None,
+        intents: HumanIntents | None = None,
+        q0=None,
+        nu0=None,
+        warm_start_inputs=None,
+    ) -> tuple[HumanPrediction, PredictorState]:
+        """This step's prediction and the state after it (``state`` is not
+        changed). The ORCA model needs the robot's measured state (q0, ν0)
+        and the warm-start inputs (N, m) to simulate the people against;
+        without them (or with a non-finite state) its prediction holds the
+        people where they are and carries no actions."""
+        cfg = self.config
+        preferred = FilterPreferredVelocities(
+            state.preferred_velocities, estimate, intents, self._alpha
+        )
+        slots = AssignSlots(state.slot_ids, estimate, preferred)
+        neighbors = state.neighbors
+        actions = multipliers = None
+        if cfg.predictor == "cvmm":
+            positions = ConstantVelocityPrediction(slots.p0, slots.v0, self.N, self.dt)
+        else:
+            positions = HeldPrediction(slots.p0, self.N)
+        if self.orca is not None:
+            neighbors = SelectNeighbors(
+                state.neighbors,
+                slots,
+                horizon_time=self.N * self.dt,
+                hysteresis=cfg.neighbor_hysteresis,
+            )
+            robot = self._RobotTrajectory(q0, nu0, warm_start_inputs)
+            if robot is not None:
+                positions, actions, multipliers = self.orca.ForwardSimulate(
+                    slots, neighbors, robot
+                )
+        prediction = HumanPrediction(
+            model=cfg.predictor,
+            slot_ids=slots.slot_ids,
+            active=slots.active,
+            velocities=slots.v0,
+            preferred_velocities=slots.v_pref,
+            positions=positions,
+            neighbors=neighbors,
+            actions=actions,
+            multipliers=multipliers,
+            preferred_by_id=preferred,
+            dropped=slots.dropped,
+            estimate=estimate if estimate is not None else HumanEstimate(),
+        )
+        return prediction, NextState(prediction)
+
+    def _RobotTrajectory(self, q0, nu0, inputs):
+        """The RobotView of the robot's warm start, or None."""
+        if q0 is None or nu0 is None or inputs is None:
+            return None
+        q0 = np.asarray(q0, dtype=float)
+        nu0 = np.asarray(nu0, dtype=float)
+        if not (np.all(np.isfinite(q0)) and np.all(np.isfinite(nu0))):
+            return None
+        q, nu, _ = Rollout(self.robot, q0, nu0, inputs, self.dt)
+        return self.orca.RobotView(q[:-1], nu[:-1])
+
+
+def NextState(prediction: HumanPrediction) -> PredictorState:
+    """What the predictor remembers after making ``prediction``."""
+    return PredictorState(
+        slot_ids=np.array(prediction.slot_ids),
+        neighbors=np.array(prediction.neighbors),
+        preferred_velocities=dict(prediction.preferred_by_id),
+    )

@@ -1,0 +1,174 @@
+"""What the human predictor remembers between control steps, and the pure
+functions that update it.
+
+The MPC has a fixed number H of human slots (``max_humans``). Tracked people
+are assigned to slots by id and kept there while they are tracked, so warm
+starts stay aligned; empty slots are parked far away, where no constraint is
+active. Each person's preferred velocity (the ORCA model's v_pref) is their
+measured velocity, optionally low-pass filtered, or the intent a simulation
+knows. Each person reacts to at most K others (RVO2's ``maxNeighbors``),
+chosen with hysteresis so the sets (and the QP's pattern) do not flicker.
+
+All of it lives in the HumanPredictor's Context as a :class:`PredictorState`.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sm2ith_drake.humans.messages import HumanEstimate, HumanIntents
+
+# Where empty human slots are parked (m): far from anything, finite.
+PARKED = np.array([1.0e3, 1.0e3])
+_EPS = 1e-9
+
+
+def ParkedPositions(num_slots: int) -> np.ndarray:
+    """(H, 2) parking spots of empty slots, 10 m apart."""
+    return np.tile(PARKED, (num_slots, 1)) + 10.0 * np.arange(num_slots)[:, None]
+
+
+def DefaultNeighbors(num_slots: int, num_neighbors: int) -> np.ndarray:
+    """(H, K): every slot's first K other slots (the initial sets)."""
+    H, K = num_slots, num_neighbors
+    return np.array(
+        [[i for i in range(H) if i != j][:K] for j in range(H)], dtype=int
+    ).reshape(H, K)
+
+
+@dataclass
+class PredictorState:
+    """The predictor's persistent state (held in the Context)."""
+
+    # Human id per slot, −1 = empty.
+    slot_ids: np.ndarray
+    # neighbors[j]: the slots whose ORCA lines slot j has (sorted).
+    neighbors: np.ndarray
+    # The preferred velocity of every tracked human, by id.
+    preferred_velocities: dict = field(default_factory=dict)
+
+
+@dataclass
+class HumanSlots:
+    """The tracked people in their slots at one control step."""
+
+    slot_ids: np.ndarray  # (H,) id, −1 = empty
+    active: np.ndarray  # (H,) bool
+    p0: np.ndarray  # (H, 2) positions (parked where empty)
+    v0: np.ndarray  # (H, 2) velocities (0 where empty)
+    v_pref: np.ndarray  # (H, 2) preferred velocities (0 where empty)
+    dropped: int = 0  # tracked people without a free slot
+
+
+def FilterPreferredVelocities(
+    previous: dict,
+    estimate: HumanEstimate | None,
+    intents: HumanIntents | None,
+    alpha: float,
+) -> dict:
+    """Each tracked human's v_pref by id: the measured velocity low-pass
+    filtered with gain ``alpha`` (1: the latest measurement; a new id starts
+    from its measurement; a non-finite measurement keeps the previous
+    value), or the intent the simulation knows (``intents``, NaN: unknown)."""
+    if estimate is None:
+        return {}
+    known = {}
+    if intents is not None:
+        known = {
+            int(i): v
+            for i, v in zip(intents.ids, intents.preferred_velocities, strict=True)
+            if np.all(np.isfinite(v))
+        }
+    out = {}
+    for hid, v in zip(estimate.ids, estimate.velocities, strict=True):
+        hid = int(hid)
+        if hid in known:
+            out[hid] = np.array(known[hid], dtype=float)
+            continue
+        old = previous.get(hid)
+        if not np.all(np.isfinite(v)):
+            if old is not None:
+                out[hid] = old
+            continue
+        out[hid] = np.array(v, dtype=float) if old is None else old + alpha * (v - old)
+    return out
+
+
+def AssignSlots(
+    previous_slot_ids: np.ndarray,
+    estimate: HumanEstimate | None,
+    preferred_velocities: dict,
+) -> HumanSlots:
+    """Assigns the tracked humans to slots, stable by id. People with a
+    non-finite position, velocity or v_pref are left out; a person's v_pref
+    defaults to the measured velocity."""
+    estimate = estimate or HumanEstimate()
+    H = len(previous_slot_ids)
+    pref = np.array(
+        [
+            preferred_velocities.get(int(i), v)
+            for i, v in zip(estimate.ids, estimate.velocities, strict=True)
+        ]
+    ).reshape(-1, 2)
+    ok = (
+        np.all(np.isfinite(estimate.positions), axis=1)
+        & np.all(np.isfinite(estimate.velocities), axis=1)
+        & np.all(np.isfinite(pref), axis=1)
+    )
+    ids = estimate.ids[ok]
+    pos, vel, pref = estimate.positions[ok], estimate.velocities[ok], pref[ok]
+    slot_ids = np.array(previous_slot_ids, dtype=int)
+    slot_ids[~np.isin(slot_ids, ids)] = -1
+    p0 = ParkedPositions(H)
+    v0 = np.zeros((H, 2))
+    v_pref = np.zeros((H, 2))
+    dropped = 0
+    for i, hid in enumerate(ids):
+        slots = np.nonzero(slot_ids == hid)[0]
+        if not slots.size:
+            free = np.nonzero(slot_ids < 0)[0]
+            if not free.size:
+                dropped += 1
+                continue
+            slot_ids[free[0]] = hid
+            slots = free[:1]
+        p0[slots[0]] = pos[i]
+        v0[slots[0]] = vel[i]
+        v_pref[slots[0]] = pref[i]
+    active = slot_ids >= 0
+    return HumanSlots(
+        slot_ids=slot_ids, active=active, p0=p0, v0=v0, v_pref=v_pref, dropped=dropped
+    )
+
+
+def SelectNeighbors(
+    previous: np.ndarray,
+    slots: HumanSlots,
+    *,
+    horizon_time: float,
+    hysteresis: float,
+) -> np.ndarray:
+    """Each slot's K neighbours (K = previous.shape[1]): the humans that come
+    closest to it within the horizon if everyone keeps their velocity
+    (active humans before empty slots), incumbents favoured by
+    ``hysteresis``."""
+    H, K = previous.shape
+    if K == 0:
+        return np.zeros((H, 0), dtype=int)
+    if K == H - 1:
+        return previous
+    p0, v0 = slots.p0, slots.v0
+    r = p0[None, :] - p0[:, None]  # (H, H, 2): i relative to j
+    w = v0[None, :] - v0[:, None]
+    t = np.clip(
+        -np.sum(r * w, axis=-1) / np.maximum(np.sum(w * w, axis=-1), _EPS),
+        0.0,
+        horizon_time,
+    )
+    d = np.linalg.norm(r + t[..., None] * w, axis=-1)
+    d[:, ~slots.active] += 1e6  # empty slots only as fillers
+    np.fill_diagonal(d, np.inf)
+    rows = np.arange(H)[:, None]
+    d[rows, previous] -= hysteresis
+    chosen = np.argsort(d, axis=1, kind="stable")[:, :K]
+    return np.sort(chosen, axis=1)
