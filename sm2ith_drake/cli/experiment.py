@@ -6,7 +6,8 @@ from pathlib import Path
 
 from sm2ith_drake.cli.run import RunCommand
 from sm2ith_drake.errors import UserError
-from sm2ith_drake.experiments.campaign import STUDIES, ReadRows, RunCampaign
+from sm2ith_drake.experiments.campaign import ReadRows, RunCampaign
+from sm2ith_drake.experiments.studies import STUDIES
 
 
 def _UserError(message):

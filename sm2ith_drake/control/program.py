@@ -1,17 +1,29 @@
-"""One MPC program: variables, constraint groups and least-squares costs.
+"""One MPC program (eqs. htmpc and smith): variables, bounds, the shared
+constraint groups and the effort cost.
 
 The program is described once, as groups of vector-valued functions with a
-fixed sparsity pattern: each group evaluates its values g(z̄) and the nonzeros
-of ∂g/∂z at a point z̄. Two solvers consume that description
-(:mod:`sm2ith_drake.control.htmpc`): the real-time iteration, which linearizes
-every group at the warm start and solves sparse QPs in a persistent PIQP
-workspace, and the nonlinear path, which hands the same functions with their
-analytic Jacobians to SNOPT or IPOPT through a MathematicalProgram.
+fixed sparsity pattern (control/groups.py): each group evaluates its values
+g(z̄) and the nonzeros of ∂g/∂z at a point z̄. Two stage solvers consume that
+description: the real-time iteration (control/rti_solver.py), which
+linearizes every group at the warm start and solves sparse QPs in a
+persistent PIQP workspace, and the nonlinear path (control/nlp_solver.py),
+which hands the same functions with their analytic Jacobians to SNOPT or
+IPOPT through a MathematicalProgram.
 
 Variables (eq. htmpc): q_0..q_N (configuration), ν_0..ν_N (pseudo-velocities)
 and u_0..u_{N-1} = ν̇ (input). Predictors of human motion append their own
-variables and groups through :meth:`VariableLayout.AddVariables` and
-:class:`ConstraintGroup`.
+variables and groups (control/prediction/). The program holds:
+
+- the robot dynamics (eqs. htmpc_dyn, smith_robdyn: DynamicsGroup);
+- the state and input limits as variable bounds (eqs. htmpc_limits,
+  smith_limits) and the initial condition pinned by bounds (eqs. htmpc_init,
+  smith_init: VariableBounds);
+- self-collision (eqs. htmpc_self_collision, smith_self_collision);
+- the predictor's groups: for SM²ITH the human dynamics and the ORCA KKT
+  system (eqs. smith_humdyn, smith_kkt_*; control/prediction/kkt_groups.py);
+- the DT-CBF (eq. smith_avoid_coll; control/cbf.py);
+- the effort J_eff of every stage's cost (eqs. htmpc_cost, smith_cost; the
+  task terms are added per stage, control/stage_problem.py).
 """
 
 from __future__ import annotations
@@ -31,6 +43,7 @@ from sm2ith_drake.control.robot_groups import (
     TaskErrorGroup,
 )
 from sm2ith_drake.control.tasks import Task
+from sm2ith_drake.robots.planar_base import NUM_BASE_POSITIONS, ArmVelocityIndex
 from sm2ith_drake.scenario import SafetyConfig
 
 # Exact-penalty weights of constraint slacks (large against task costs of
@@ -168,9 +181,9 @@ class MpcProgram:
         at the limit). Without this the QP is infeasible and the step falls
         back, although braking is exactly what the plan should do."""
         L, dt, robot = self.layout, self.time_step, self.robot
-        n, m = robot.num_positions, robot.num_velocities
-        arm_q = np.arange(3, n)
-        arm_nu = arm_q + (m - n)
+        n = robot.num_positions
+        arm_q = np.arange(NUM_BASE_POSITIONS, n)
+        arm_nu = ArmVelocityIndex(robot, arm_q)
         v = np.asarray(nu0, dtype=float)[arm_nu].copy()
         if not np.all(np.isfinite(v)) or not np.any(v):
             return

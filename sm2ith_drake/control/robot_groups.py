@@ -13,7 +13,7 @@ from sm2ith_drake.geometry import capsule_distance_and_gradient
 
 
 class DynamicsGroup(ConstraintGroup):
-    """Discretized q̇ = G(q)ν, ν̇ = u (eq. htmpc_dyn), as = 0 rows:
+    """Discretized q̇ = G(q)ν, ν̇ = u (eqs. htmpc_dyn, smith_robdyn), as = 0 rows:
 
         ν_{k+1} − ν_k − Δt u_k = 0,
         q_{k+1} − q_k − Δt G(q_k) (ν_k + ν_{k+1}) / 2 = 0.

@@ -13,6 +13,7 @@ from typing import Protocol
 
 import numpy as np
 
+from sm2ith_drake.robots.planar_base import NUM_BASE_POSITIONS
 from sm2ith_drake.scenario import TaskConfig
 
 
@@ -119,7 +120,7 @@ class JointPosture(_Selection):
 
     def __init__(self, *, num_positions, **kwargs):
         super().__init__(
-            indices=list(range(3, num_positions)),
+            indices=list(range(NUM_BASE_POSITIONS, num_positions)),
             num_positions=num_positions,
             **kwargs,
         )

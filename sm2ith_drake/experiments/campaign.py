@@ -21,8 +21,10 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
 from sm2ith_drake.experiments.report import MakePlots, WriteReport
+from sm2ith_drake.experiments.studies import Study
 from sm2ith_drake.run.metrics import CAMPAIGN_METRICS, CampaignRow
 from sm2ith_drake.run.simulation import RunSimulation
 from sm2ith_drake.scenario_loader import LoadScenario
@@ -48,58 +50,6 @@ COLUMNS = RUN_COLUMNS + CAMPAIGN_METRICS
 
 
 @dataclasses.dataclass(frozen=True)
-class Cell:
-    """One scenario of a study (a box group in the plots)."""
-
-    scenario_file: str
-    scenario: str
-    # The panel family (e.g. "banner", "cup", or the robot's name).
-    family: str
-    robot: str
-    humans: int
-
-
-@dataclasses.dataclass(frozen=True)
-class Method:
-    """A controller variant: YAML applied on top of every cell's scenario."""
-
-    name: str
-    scenario_text: str = ""
-    seeds: int = 5
-
-
-@dataclasses.dataclass(frozen=True)
-class Panel:
-    """One box-and-whisker panel: ``metric`` over the rows of ``family``,
-    grouped by the number of humans, one box per method."""
-
-    title: str
-    metric: str
-    ylabel: str
-    family: str
-
-
-@dataclasses.dataclass(frozen=True)
-class Study:
-    name: str
-    description: str
-    cells: tuple
-    methods: tuple
-    panels: tuple
-    # Columns of the report's per-method summary table.
-    summary: tuple = (
-        "success",
-        "navigation_time",
-        "collision",
-        "min_human_gap",
-        "intimate_space_time",
-        "fallbacks",
-        "step_time_median_ms",
-        "step_time_p95_ms",
-    )
-
-
-@dataclasses.dataclass(frozen=True)
 class RunSpec:
     study: str
     family: str
@@ -116,115 +66,6 @@ class RunSpec:
     @property
     def run_id(self) -> str:
         return f"{self.scenario}/{self.method}/seed{self.seed}"
-
-
-def _Cells(file, family, robot, names_and_humans):
-    return tuple(Cell(file, name, family, robot, h) for name, h in names_and_humans)
-
-
-_BC = "banner_cup.scenarios.yaml"
-_PP = "pick_and_place.scenarios.yaml"
-
-STUDIES = {
-    "banner_cup": Study(
-        name="banner_cup",
-        description=(
-            "Section V.A: Stretch 3 crosses the room with its arm extended "
-            "while 1–3 people meet it at the centre. banner: EE ≥ base; cup: "
-            "base ≥ EE. SM²ITH (lexicographic) vs the weighted sum."
-        ),
-        cells=_Cells(
-            _BC,
-            "banner",
-            "stretch3",
-            [(f"banner_stretch3_{h}h", h) for h in (1, 2, 3)],
-        )
-        + _Cells(
-            _BC, "cup", "stretch3", [(f"cup_stretch3_{h}h", h) for h in (1, 2, 3)]
-        ),
-        methods=(
-            Method("SM2ITH", "", 5),
-            Method("weighted_sum", "{controller: {method: weighted_sum}}", 5),
-        ),
-        panels=(
-            Panel("Banner (E≥B): avg. EE error", "ee_error_mean", "m", "banner"),
-            Panel("Banner (E≥B): max. EE error", "ee_error_max", "m", "banner"),
-            Panel("Cup (B≥E): avg. base deviation", "base_path_deviation", "m", "cup"),
-            Panel("Cup (B≥E): navigation time", "navigation_time", "s", "cup"),
-        ),
-    ),
-    "pick_and_place": Study(
-        name="pick_and_place",
-        description=(
-            "Section V.B: pick-and-place on both robots with 1–2 people "
-            "crossing the room. SM²ITH (interactive ORCA-KKT prediction) vs "
-            "CVMM (constant velocity) vs React (no prediction)."
-        ),
-        cells=tuple(
-            c
-            for robot in ("ridgeback_ur10", "stretch3")
-            for c in _Cells(
-                _PP,
-                robot,
-                robot,
-                [(f"pick_and_place_{robot}_{h}h", h) for h in (1, 2)],
-            )
-        ),
-        methods=(
-            Method("SM2ITH", "", 10),
-            Method("CVMM", "{prediction: {predictor: cvmm}}", 5),
-            Method("React", "{prediction: {predictor: react}}", 5),
-        ),
-        panels=tuple(
-            Panel(f"{label}: {title}", metric, unit, robot)
-            for robot, label in (
-                ("ridgeback_ur10", "Ridgeback–UR10"),
-                ("stretch3", "Stretch 3"),
-            )
-            for title, metric, unit in (
-                ("navigation time", "navigation_time", "s"),
-                ("avg. base deviation", "base_path_deviation", "m"),
-                ("time in intimate space", "intimate_space_time", "s"),
-                ("avg. human distance", "mean_human_distance", "m"),
-            )
-        ),
-    ),
-    "adversarial": Study(
-        name="adversarial",
-        description=(
-            "Section V.C: a person walks straight at Stretch 3 on its way to "
-            "a goal 3 m ahead. SM²ITH vs CVMM: how far the robot retreats and "
-            "how close it ends to its goal."
-        ),
-        cells=(
-            Cell(
-                "crossing.scenarios.yaml",
-                "adversarial_stretch3",
-                "adversarial",
-                "stretch3",
-                1,
-            ),
-        ),
-        methods=(
-            Method("SM2ITH", "", 5),
-            Method("CVMM", "{prediction: {predictor: cvmm}}", 5),
-        ),
-        panels=(
-            Panel("Retreat from the goal", "base_retreat", "m", "adversarial"),
-            Panel("Final distance to the goal", "base_error_final", "m", "adversarial"),
-            Panel("Base deviation", "base_path_deviation", "m", "adversarial"),
-            Panel("Closest approach (gap)", "min_human_gap", "m", "adversarial"),
-        ),
-        summary=(
-            "base_retreat",
-            "base_error_final",
-            "collision",
-            "min_human_gap",
-            "fallbacks",
-            "step_time_median_ms",
-        ),
-    ),
-}
 
 
 def PlanRuns(
@@ -403,42 +244,6 @@ def _Format(value):
     return value
 
 
-class _Progress:
-    """A one-line progress bar on a terminal, a line per run otherwise."""
-
-    def __init__(self, total: int, skipped: int, stream=sys.stderr):
-        self.total, self.done, self.errors = total, 0, 0
-        self.skipped = skipped
-        self.start = time.perf_counter()
-        self.stream = stream
-        self.tty = stream.isatty()
-
-    def Update(self, row: dict) -> None:
-        self.done += 1
-        self.errors += row.get("status") != "ok"
-        elapsed = time.perf_counter() - self.start
-        eta = elapsed / self.done * (self.total - self.done)
-        width = 30
-        filled = int(width * self.done / max(1, self.total))
-        text = (
-            f"[{'#' * filled}{'.' * (width - filled)}] {self.done}/{self.total}"
-            f" ({self.errors} failed) {_Clock(elapsed)} elapsed, "
-            f"~{_Clock(eta)} left | {row['run_id']} {row.get('status')}"
-            f" {row.get('wall_time_s', 0):.1f}s"
-        )
-        if self.tty:
-            print(f"\r{text[:160]:<160}", end="", file=self.stream, flush=True)
-            if self.done == self.total:
-                print(file=self.stream)
-        else:
-            print(text, file=self.stream, flush=True)
-
-
-def _Clock(seconds: float) -> str:
-    seconds = int(round(seconds))
-    return f"{seconds // 60}m{seconds % 60:02d}s"
-
-
 @dataclasses.dataclass
 class CampaignResult:
     csv_path: Path
@@ -492,12 +297,19 @@ def RunCampaign(
             f"{jobs if executor == 'local' else 'ray'} worker(s)",
             file=sys.stderr,
         )
-    bar = _Progress(len(todo), skipped) if progress else None
+    failed = 0
     start = time.perf_counter()
-    for row in _Execute(todo, str(cache), jobs, executor, address):
-        _AppendRow(csv_path, row)
-        if bar:
-            bar.Update(row)
+    with tqdm(
+        total=len(todo), unit="run", file=sys.stderr, disable=not progress
+    ) as bar:
+        for row in _Execute(todo, str(cache), jobs, executor, address):
+            _AppendRow(csv_path, row)
+            failed += row.get("status") != "ok"
+            bar.set_postfix_str(
+                f"{failed} failed | {row['run_id']} {row.get('status')} "
+                f"{row.get('wall_time_s', 0):.1f}s"
+            )
+            bar.update()
     wall = time.perf_counter() - start
     wanted = {s.run_id for s in specs}
     rows = [r for r in ReadRows(csv_path) if r["run_id"] in wanted]

@@ -175,7 +175,7 @@ class _LogView:
         return self.Log()
 
     def _Fork(self) -> RunLog:
-        samples, records, dropped_samples, dropped_records, counters = self._mark
+        samples, records, dropped_samples, dropped_records = self._mark
         log = self._log
         if (log.dropped_samples, log.dropped_records) != (
             dropped_samples,

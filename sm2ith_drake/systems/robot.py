@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
+from sm2ith_drake.robots.planar_base import NUM_BASE_POSITIONS, ArmVelocityIndex
+
 
 class KinematicRobot(LeafSystem):
     """A kinematic mobile manipulator: q̇ = G(q) ν, ν̇ = u (Section III).
@@ -56,6 +58,7 @@ class KinematicRobot(LeafSystem):
         q_next = q + h * robot.G(q) @ nu_next
         clipped = np.clip(q_next, robot.q_lower, robot.q_upper)
         # A joint that hits its limit stops (arm joints map 1:1 to ν).
-        hit = np.nonzero(clipped[3:] != q_next[3:])[0]
-        nu_next[hit + (robot.num_velocities - (robot.num_positions - 3))] = 0.0
+        arm = slice(NUM_BASE_POSITIONS, None)
+        hit = NUM_BASE_POSITIONS + np.nonzero(clipped[arm] != q_next[arm])[0]
+        nu_next[ArmVelocityIndex(robot, hit)] = 0.0
         discrete_state.set_value(np.concatenate([clipped, nu_next]))

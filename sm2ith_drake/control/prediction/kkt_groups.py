@@ -1,6 +1,13 @@
-"""The ORCA-KKT constraint groups of SM²ITH (eq. smith): stationarity,
-primal feasibility, relaxed complementarity and the human dynamics of every
-human's relaxed-ORCA QP, as ConstraintGroups with fixed patterns.
+"""The ORCA-KKT constraint groups of SM²ITH (eq. smith), as
+ConstraintGroups with fixed patterns (the derivation is in orca_kkt.py):
+
+- KktEqualities: stationarity in a of every human's relaxed-ORCA QP
+  (eq. smith_kkt_stationarity) and the human dynamics p_{k+1} = p_k + Δt a_k
+  (eq. smith_humdyn);
+- KktInequalities: primal feasibility c ≤ 0 (eq. smith_kkt_primal) and
+  relaxed complementarity λ·c ≥ −ε (eq. smith_kkt_complementarity); dual
+  feasibility λ ≥ 0 (eq. smith_kkt_dual) is a variable bound
+  (OrcaKkt.ApplyBounds).
 """
 
 from dataclasses import dataclass
@@ -8,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sm2ith_drake.control.groups import BlockPattern, ConstraintGroup
+from sm2ith_drake.robots.planar_base import NumBaseVelocities
 
 
 def KktTerms(pred, z, v, n, rho, no, rho_o):
@@ -76,7 +84,7 @@ class KktBlocks:
         self.layout = layout
         self.num_multipliers = pred.num_multipliers
         self.n = pred.robot.num_positions
-        self.nb = 3 if pred.robot.base_kind == "holonomic" else 2
+        self.nb = NumBaseVelocities(pred.robot)
         self.ilam = 2
         self.io = 2 + self.num_multipliers  # own p, then own v
         self.inb = self.io + 4  # neighbour i: inb + 4i … inb + 4i + 3
@@ -202,7 +210,8 @@ class KktBlocks:
 
 
 class KktEqualities(ConstraintGroup):
-    """Stationarity in a of every human's QP and the human dynamics (= 0)."""
+    """Stationarity in a of every human's QP (eq. smith_kkt_stationarity)
+    and the human dynamics (eq. smith_humdyn), as = 0 rows."""
 
     name = "orca_kkt_equalities"
 
@@ -264,8 +273,9 @@ class KktEqualities(ConstraintGroup):
 
 
 class KktInequalities(ConstraintGroup):
-    """Primal feasibility c ≤ 0 and relaxed complementarity λ·c ≥ −ε of
-    every human's QP (dual feasibility λ ≥ 0 is a bound)."""
+    """Primal feasibility c ≤ 0 (eq. smith_kkt_primal) and relaxed
+    complementarity λ·c ≥ −ε (eq. smith_kkt_complementarity) of every
+    human's QP; dual feasibility λ ≥ 0 (eq. smith_kkt_dual) is a bound."""
 
     name = "orca_kkt_inequalities"
 

@@ -128,6 +128,8 @@ class OrcaKkt(Predictor):
         return [(self._equality, np.zeros(m), np.zeros(m)), (self._inequality, lo, hi)]
 
     def ApplyBounds(self, lower, upper):
+        """The people's initial positions (eq. smith_init) and dual
+        feasibility λ ≥ 0 (eq. smith_kkt_dual)."""
         lower[self.p[0]] = upper[self.p[0]] = self.p0
         lower[self.lam] = 0.0
 
