@@ -97,3 +97,28 @@ def test_one_diagram_serves_two_contexts_interleaved():
     a, _ = _Commands(diagram, solo[0].get_context())
     b, _ = _Commands(diagram, solo[1].get_context())
     assert not np.array_equal(a, b)
+
+
+def test_the_diagram_chains_estimator_predictor_controller():
+    """HumanEstimator → HumanPredictor → HierarchicalMpc, and the plan
+    back to the predictor (state-only, so no algebraic loop), as the
+    --graphviz picture shows."""
+    diagram = _Diagram("crossing_stretch3_2h")
+    sources = {
+        (dst.get_name(), int(dst_port)): src.get_name()
+        for (dst, dst_port), (src, _) in diagram.connection_map().items()
+    }
+    estimator = diagram.GetSubsystemByName("human_estimator")
+    predictor = diagram.GetSubsystemByName("human_predictor")
+    controller = diagram.GetSubsystemByName("controller")
+
+    def source(system, port):
+        index = int(system.GetInputPort(port).get_index())
+        return sources[(system.get_name(), index)]
+
+    assert source(predictor, "human_estimate") == estimator.get_name()
+    assert source(controller, "human_prediction") == predictor.get_name()
+    assert source(predictor, "plan") == controller.get_name()
+    dot = diagram.GetGraphvizString(max_depth=1)
+    for name in ("human_estimator", "human_predictor", "controller"):
+        assert f"name={name}" in dot

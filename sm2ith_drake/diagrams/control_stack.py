@@ -33,6 +33,8 @@ class ControlStack:
         intents_input: the predictor's simulation-only ``human_intents``
             input (with ``with_intents``), else None.
         command: the controller's ``command`` output [u; ν_cmd].
+        plan: the controller's ``plan`` output (an MpcPlan).
+        controller_state: the controller's ``controller_state`` output.
     """
 
     planner: object
@@ -45,6 +47,8 @@ class ControlStack:
     estimate_input: object
     intents_input: object
     command: object
+    plan: object
+    controller_state: object
 
 
 def AddControlStack(
@@ -186,4 +190,6 @@ def AddControlStack(
         estimate_input=estimate,
         intents_input=intents,
         command=controller.GetOutputPort("command"),
+        plan=controller.GetOutputPort("plan"),
+        controller_state=controller.GetOutputPort("controller_state"),
     )

@@ -260,11 +260,9 @@ def MakeHardwareDiagram(*, scenario: Scenario, lcm, robot=None, tasks=None):
         builder.Connect(hardware.GetOutputPort("detections"), stack.detections_input)
     builder.Connect(stack.command, hardware.GetInputPort("command"))
     if h.publish_plan:
+        builder.Connect(stack.plan, hardware.GetInputPort("plan"))
         builder.Connect(
-            stack.controller.GetOutputPort("plan"), hardware.GetInputPort("plan")
-        )
-        builder.Connect(
-            stack.controller.GetOutputPort("controller_state"),
+            stack.controller_state,
             hardware.GetInputPort("controller_state"),
         )
     diagram = builder.Build()

@@ -147,6 +147,11 @@ def MakeSimulation(
                 ),
             )
             builder.Connect(controller.GetOutputPort("plan"), hv.GetInputPort("plan"))
+            if stack.predictor is not None:
+                builder.Connect(
+                    stack.predictor.GetOutputPort("last_prediction"),
+                    hv.GetInputPort("human_prediction"),
+                )
             if crowd is not None:
                 builder.Connect(
                     crowd.GetOutputPort("human_truth"), hv.GetInputPort("human_truth")

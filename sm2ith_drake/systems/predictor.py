@@ -30,6 +30,7 @@ class HumanPredictor(LeafSystem):
         - human_intents (simulation only, optional)
         output_ports:
         - human_prediction
+        - last_prediction
 
     ``human_prediction`` (a HumanPrediction) is computed from the inputs and
     what the predictor remembers: the people's slots, their ORCA neighbour
@@ -39,7 +40,9 @@ class HumanPredictor(LeafSystem):
     ``plan`` is the HierarchicalMpc's plan (its output depends on its state
     only, so there is no algebraic loop). ``human_intents`` carries the
     preferred velocities only a simulation knows (people who walk as the
-    model says); on hardware it does not exist.
+    model says); on hardware it does not exist. ``last_prediction`` is the
+    prediction committed at the last update (state only, for drawing: it
+    costs nothing to evaluate between control steps).
     """
 
     def __init__(
@@ -88,6 +91,12 @@ class HumanPredictor(LeafSystem):
             lambda: AbstractValue.Make(HumanPrediction()),
             self._CalcPrediction,
         )
+        self.DeclareAbstractOutputPort(
+            "last_prediction",
+            lambda: AbstractValue.Make(HumanPrediction()),
+            self._CalcLastPrediction,
+            {self.abstract_state_ticket(self._state)},
+        )
         self.DeclarePeriodicUnrestrictedUpdateEvent(control_period, 0.0, self._Update)
 
     def _Predict(self, context):
@@ -104,6 +113,10 @@ class HumanPredictor(LeafSystem):
 
     def _CalcPrediction(self, context, output):
         output.set_value(self._Predict(context)[0])
+
+    def _CalcLastPrediction(self, context, output):
+        last = context.get_abstract_state(self._state).get_value().last_prediction
+        output.set_value(last if last is not None else HumanPrediction())
 
     def _Update(self, context, state):
         # The output is cached: the controller's update at this instant has

@@ -9,7 +9,7 @@ from pydrake.geometry import Box, Cylinder, Rgba, Sphere
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.framework import LeafSystem
 
-from sm2ith_drake.humans.messages import HumanEstimate, MpcPlan
+from sm2ith_drake.humans.messages import HumanEstimate, HumanPrediction, MpcPlan
 from sm2ith_drake.planning.sequence import TaskReferences
 
 ORANGE = Rgba(1.0, 0.55, 0.0, 1.0)
@@ -41,6 +41,9 @@ class PlanVisualizer(LeafSystem):
         self._prefix = prefix
         self._plan = self.DeclareAbstractInputPort(
             "plan", AbstractValue.Make(MpcPlan())
+        )
+        self._prediction = self.DeclareAbstractInputPort(
+            "human_prediction", AbstractValue.Make(HumanPrediction())
         )
         self._refs = self.DeclareAbstractInputPort(
             "task_references", AbstractValue.Make(TaskReferences())
@@ -100,11 +103,14 @@ GREEN = Rgba(0.1, 0.75, 0.2, 1.0)
 HUMAN = Rgba(0.85, 0.45, 0.35, 0.9)
 OBSTACLE = Rgba(0.55, 0.5, 0.45, 1.0)
 HUMAN_HEIGHT = 1.7
+GREY = Rgba(0.45, 0.45, 0.45, 0.8)
 
 
 class HumanVisualizer(LeafSystem):
-    """Draws the humans (cylinders), their predicted paths (green) and the
-    static obstacles, as in the paper's figures.
+    """Draws the humans (cylinders), the MPC's refined predictions of their
+    paths (green, from the plan), the HumanPredictor's prediction before the
+    MPC refined it (small grey dots) and the static obstacles, as in the
+    paper's figures.
 
     .. pydrake_system::
 
@@ -112,6 +118,7 @@ class HumanVisualizer(LeafSystem):
         input_ports:
         - human_truth
         - plan
+        - human_prediction
     """
 
     def __init__(
@@ -144,6 +151,7 @@ class HumanVisualizer(LeafSystem):
         for slot in range(max_humans):
             for k in range(horizon + 1):
                 meshcat.SetObject(self._PredictionPath(slot, k), Sphere(0.06), GREEN)
+                meshcat.SetObject(self._PredictorPath(slot, k), Sphere(0.03), GREY)
         for i, o in enumerate(obstacles):
             v = np.asarray(o.vertices, dtype=float)
             edges = (
@@ -172,6 +180,20 @@ class HumanVisualizer(LeafSystem):
     def _PredictionPath(self, slot, k):
         return f"/{self._prefix}/human_predictions/{slot}/{k}"
 
+    def _PredictorPath(self, slot, k):
+        return f"/{self._prefix}/predictor_output/{slot}/{k}"
+
+    def _DrawPaths(self, positions, active, path, height, t):
+        """Per slot and step, a dot at the predicted position (hidden below
+        the floor for empty slots)."""
+        for slot in range(min(self._H, positions.shape[1])):
+            for k in range(min(self._N + 1, positions.shape[0])):
+                p = positions[k, slot]
+                z = height if active[slot] else -10.0
+                self._meshcat.SetTransform(
+                    path(slot, k), RigidTransform([p[0], p[1], z]), t
+                )
+
     def _Draw(self, context):
         t = context.get_time()
         meshcat = self._meshcat
@@ -184,14 +206,23 @@ class HumanVisualizer(LeafSystem):
                 RigidTransform([p[0], p[1], HUMAN_HEIGHT / 2]),
                 t,
             )
+        if self._prediction.HasValue(context):
+            prediction = self._prediction.Eval(context)
+            if prediction.positions.shape[1]:
+                self._DrawPaths(
+                    prediction.positions,
+                    prediction.active,
+                    self._PredictorPath,
+                    0.03,
+                    t,
+                )
         plan = self._plan.Eval(context).solution
         if plan is None or plan.human_predictions is None:
             return
-        for slot in range(min(self._H, plan.human_predictions.shape[1])):
-            active = plan.human_slot_ids[slot] >= 0
-            for k in range(min(self._N + 1, plan.human_predictions.shape[0])):
-                p = plan.human_predictions[k, slot]
-                z = 0.06 if active else -10.0  # hide empty slots below the floor
-                meshcat.SetTransform(
-                    self._PredictionPath(slot, k), RigidTransform([p[0], p[1], z]), t
-                )
+        self._DrawPaths(
+            plan.human_predictions,
+            plan.human_slot_ids >= 0,
+            self._PredictionPath,
+            0.06,
+            t,
+        )

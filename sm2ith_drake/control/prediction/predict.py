@@ -149,4 +149,5 @@ def NextState(prediction: HumanPrediction) -> PredictorState:
         slot_ids=np.array(prediction.slot_ids),
         neighbors=np.array(prediction.neighbors),
         preferred_velocities=dict(prediction.preferred_by_id),
+        last_prediction=prediction,
     )

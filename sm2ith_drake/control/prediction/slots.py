@@ -46,6 +46,8 @@ class PredictorState:
     neighbors: np.ndarray
     # The preferred velocity of every tracked human, by id.
     preferred_velocities: dict = field(default_factory=dict)
+    # The last prediction made (for drawing; not used to predict).
+    last_prediction: object = None
 
 
 @dataclass
