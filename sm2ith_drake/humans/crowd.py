@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sm2ith_drake.geometry import point_segment_distance_2d
 from sm2ith_drake.humans.half_planes import obstacle_half_planes, orca_agent_half_planes
 from sm2ith_drake.humans.orca_velocity import orca_velocity
 from sm2ith_drake.humans.relaxed_orca import relaxed_orca_action
@@ -84,15 +85,9 @@ def _NearestBody(position, robot_bodies):
     point on its axis, its radius, its surface distance)."""
     segments, radii = robot_bodies
     a, b = segments[:, 0], segments[:, 1]
-    ab = b - a
-    s = np.clip(
-        np.sum((position - a) * ab, axis=1)
-        / np.maximum(np.sum(ab * ab, axis=1), 1e-12),
-        0.0,
-        1.0,
-    )
-    closest = a + s[:, None] * ab
-    d = np.linalg.norm(closest - position, axis=1) - radii
+    d, s, _ = point_segment_distance_2d(a, b, position)
+    closest = a + s[:, None] * (b - a)
+    d = d - radii
     i = int(np.argmin(d))
     return closest[i], float(radii[i]), float(d[i])
 

@@ -4,9 +4,8 @@ the simulated people share (eq. relaxed_orca_acc_argmin's constraints).
 
 import numpy as np
 
+from sm2ith_drake.geometry import point_segment_distance_2d
 from sm2ith_drake.humans.orca import orca_agent_lines
-
-_EPS = 1e-9
 
 
 def orca_agent_half_planes(
@@ -48,17 +47,9 @@ def obstacle_half_planes(position, segments, radius, *, tau_obs):
     polygon-obstacle construction with its leg and "already covered" cases.
     """
     position = np.asarray(position, dtype=float)[..., None, :]
-    A, B = segments[:, 0], segments[:, 1]
-    AB = B - A
-    s = np.clip(
-        np.sum((position - A) * AB, axis=-1)
-        / np.maximum(np.sum(AB * AB, axis=-1), _EPS),
-        0.0,
-        1.0,
+    dist, _, toward = point_segment_distance_2d(
+        segments[:, 0], segments[:, 1], position
     )
-    closest = A + s[..., None] * AB
-    diff = position - closest
-    dist = np.linalg.norm(diff, axis=-1)
-    n = diff / np.maximum(dist, _EPS)[..., None]
+    n = -toward  # away from the segment
     # a·(−n) ≤ (dist − r)/τ_obs  ⟺  n·a ≥ −(dist − r)/τ_obs.
     return n, -(dist - radius) / tau_obs

@@ -21,6 +21,8 @@ lines (walls, boxes apart from each other) are unaffected.
 
 import numpy as np
 
+from sm2ith_drake.geometry import point_segment_distance_2d
+
 RVO_EPSILON = 1e-5
 # Guards divisions in the vectorized agent lines (degenerate geometry only).
 _EPS = 1e-9
@@ -64,16 +66,6 @@ def _MakeObstacles(obstacles):
     return vertices
 
 
-def _DistSqPointSegment(a, b, c):
-    r = np.dot(c - a, b - a) / np.dot(b - a, b - a)
-    if r < 0.0:
-        return float(np.dot(c - a, c - a))
-    if r > 1.0:
-        return float(np.dot(c - b, c - b))
-    d = c - (a + r * (b - a))
-    return float(np.dot(d, d))
-
-
 def _LeftLeg(rel, dist_sq, radius):
     """Direction of the left tangent from the agent to a disc of ``radius``
     at relative position ``rel`` (RVO2's left leg)."""
@@ -103,7 +95,7 @@ def _ObstacleLines(position, velocity, radius, vertices, tau_obs, range_sq):
         # RVO2's leftOf(p1, p2, agent) = det(p1 − agent, p2 − p1).
         if _Det(v1.point - position, v2.point - v1.point) >= 0.0:
             continue
-        dist_sq = _DistSqPointSegment(v1.point, v2.point, position)
+        dist_sq = float(point_segment_distance_2d(v1.point, v2.point, position)[0] ** 2)
         if dist_sq < range_sq:
             neighbors.append((dist_sq, v1))
     neighbors.sort(key=lambda x: x[0])

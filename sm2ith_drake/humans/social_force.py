@@ -17,6 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sm2ith_drake.geometry import point_segment_distance_2d
+
 
 @dataclass
 class SocialForceParams:
@@ -37,9 +39,9 @@ class SocialForceParams:
 
 
 def _PointSegment(p, a, b):
-    ab = b - a
-    s = np.clip(np.sum((p - a) * ab, axis=-1) / max(ab @ ab, 1e-12), 0.0, 1.0)
-    return a + s[..., None] * ab
+    """The closest point to p on the segment a–b."""
+    _, s, _ = point_segment_distance_2d(a, b, p)
+    return a + s[..., None] * (b - a)
 
 
 def social_force_step(
