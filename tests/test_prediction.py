@@ -499,7 +499,9 @@ def test_program_grows_linearly_with_the_number_of_people():
     owner = np.full(program.layout.num_variables, -1)
     for idx in (pred.p, pred.a, pred.lam):
         owner[idx] = np.arange(pred.num_slots)[None, :, None]
-    eq = c.predictor._equality
+    eq = next(
+        g for g, _, _ in c.program.ConstraintGroups() if g.name == "orca_kkt_equalities"
+    )
     kkt = eq.rows < eq.num_kkt
     row_owner = (eq.rows[kkt] // 2) % pred.num_slots
     col_owner = owner[eq.cols[kkt]]
