@@ -558,16 +558,6 @@ def test_plan_visualizer_draws_the_plan_and_targets(ridgeback, meshcat):
     np.testing.assert_allclose(t["/pv/targets/base_position"], [2.0, 1.0, 0.005])
 
 
-_MISPLACED_PORT = (
-    "library bug (commit f6111d0, systems/visualization.py): the "
-    "human_prediction input meant for HumanVisualizer is declared in "
-    "PlanVisualizer.__init__ (which never reads it); HumanVisualizer has no "
-    "such port, so its _Draw raises AttributeError ('_prediction') and "
-    "diagrams/simulation.py's hv.GetInputPort('human_prediction') fails"
-)
-
-
-@pytest.mark.xfail(strict=True, reason=_MISPLACED_PORT)
 def test_visualizer_ports_are_those_their_docstrings_list(ridgeback, meshcat):
     tasks = _Tasks(ridgeback, TaskConfig(kind="base_position", target=[2.0, 1.0]))
     plan = PlanVisualizer(meshcat, tasks, horizon=2, period=0.1, prefix="pp")
@@ -587,7 +577,6 @@ def test_human_visualizer_places_the_walls(meshcat):
     np.testing.assert_allclose(meshcat.transforms["/hw/obstacles/0/0"], [1, 1, 0.5])
 
 
-@pytest.mark.xfail(strict=True, reason=_MISPLACED_PORT)
 def test_human_visualizer_draws_people_and_predictions(meshcat):
     humans = [HumanConfig(radius=0.3), HumanConfig(radius=0.25)]
     system = HumanVisualizer(

@@ -42,9 +42,6 @@ class PlanVisualizer(LeafSystem):
         self._plan = self.DeclareAbstractInputPort(
             "plan", AbstractValue.Make(MpcPlan())
         )
-        self._prediction = self.DeclareAbstractInputPort(
-            "human_prediction", AbstractValue.Make(HumanPrediction())
-        )
         self._refs = self.DeclareAbstractInputPort(
             "task_references", AbstractValue.Make(TaskReferences())
         )
@@ -143,6 +140,9 @@ class HumanVisualizer(LeafSystem):
         )
         self._plan = self.DeclareAbstractInputPort(
             "plan", AbstractValue.Make(MpcPlan())
+        )
+        self._prediction = self.DeclareAbstractInputPort(
+            "human_prediction", AbstractValue.Make(HumanPrediction())
         )
         for j, h in enumerate(humans):
             meshcat.SetObject(

@@ -180,33 +180,6 @@ class KktBlocks:
             point, v, *planes, *derivatives, stat, c, lc, robot, body
         )
         return self._cache
-        pred, layout = self.pred, self.layout
-        z = point.z
-        p = z[pred.p[:-1]]
-        v = pred.HumanVelocities(z)
-        robot = pred.RobotViewOf(z, layout, point.kin)
-        (n, rho, no, rho_o), (dn, drho, dno, drho_o), body = pred.HalfPlaneDerivatives(
-            p, v, robot
-        )
-        stat, c, lc = KktTerms(pred, z, v, n, rho, no, rho_o)
-        self._cache = dict(
-            key=point,
-            v=v,
-            n=n,
-            rho=rho,
-            no=no,
-            rho_o=rho_o,
-            dn=dn,
-            drho=drho,
-            dno=dno,
-            drho_o=drho_o,
-            stat=stat,
-            c=c,
-            lc=lc,
-            robot=robot,
-            body=body,
-        )
-        return self._cache
 
 
 class KktEqualities(ConstraintGroup):
