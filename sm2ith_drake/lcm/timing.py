@@ -116,9 +116,12 @@ class CommandMonitor(LeafSystem):
         input_ports:
         - lcm_message
 
-    The CommandTiming lives in the Context (see :meth:`GetTiming`) and, like
-    RunLogger's log, grows in a periodic publish event (``period``: the
-    polling period) rather than being copied at every poll.
+    The CommandTiming lives in the Context (see :meth:`GetTiming`) and grows
+    in a periodic publish event (``period``: the polling period) rather than
+    being copied at every poll. Changing state in a publish event is outside
+    Drake's event model (RunLogger no longer does it); it is kept here, on
+    the hardware path only, because the timing is a diagnostic that nothing
+    in the loop reads.
     """
 
     def __init__(self, *, control_period: float, period: float):
