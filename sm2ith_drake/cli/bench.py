@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from sm2ith_drake.control.profiling import STEP
 from sm2ith_drake.run.bench import RunBenchmark
 
 
@@ -20,6 +21,7 @@ def _Bench(args) -> int:
             solver=args.solver,
             rti_iterations=args.rti_iterations,
             scenario_text=args.scenario_text,
+            profile=args.profile,
         )
         results.append(r)
         iters = r["mean_iterations"]
@@ -27,15 +29,40 @@ def _Bench(args) -> int:
         print(
             f"{robot:15s} solver={r['solver']} steps={r['steps']}  "
             f"median {r['median_ms']:.1f} ms  p95 {r['p95_ms']:.1f} ms  "
-            f"max {r['max_ms']:.1f} ms  mean iterations {iters}  "
+            f"p99 {r['p99_ms']:.1f} ms  max {r['max_ms']:.1f} ms  "
+            f"first step {r['first_step_ms']:.1f} ms  setup {r['setup_ms']:.0f} ms  "
+            f"mean iterations {iters}  "
             f"failures {r['solver_failures']}  fallbacks {r['fallbacks']}"
         )
+        if args.profile:
+            _PrintProfile(r)
     if args.json:
         Path(args.json).write_text(
             json.dumps(results[0] if len(results) == 1 else results, indent=2)
         )
         print(f"wrote {args.json}")
     return 0
+
+
+def _PrintProfile(r: dict) -> None:
+    """The phase table: median ms per control instant, exclusive of the
+    phases nested inside (they add up to the instant), and inclusive."""
+    profile, inclusive = r["profile"], r["profile_inclusive"]
+    calls = r["profile_calls"]
+    total = profile[STEP]
+    print(
+        f"  profile over {r['steps']} control instants (median per instant; "
+        f"'self' excludes nested phases, 'incl' includes them)"
+    )
+    header = f"{'self ms':>8s} {'share':>6s} {'incl ms':>8s} {'calls':>6s}"
+    print(f"  {'phase':34s} {header}")
+    for name, ms in profile.items():
+        share = f"{100 * ms / total:5.1f}%" if total > 0 else "   n/a"
+        incl = inclusive.get(name)
+        incl = f"{incl:8.2f}" if incl is not None else " " * 8
+        n = calls.get(name)
+        n = f"{n:6.1f}" if n is not None else " " * 6
+        print(f"  {name:34s} {ms:8.2f} {share} {incl} {n}")
 
 
 def AddBenchCommand(sub) -> None:
@@ -62,6 +89,12 @@ def AddBenchCommand(sub) -> None:
         default="",
         help="YAML applied on top of the benchmark scenario, e.g. "
         "'{prediction: {max_neighbors: 9}}'",
+    )
+    bench.add_argument(
+        "--profile",
+        action="store_true",
+        help="time the phases of every control instant and print the median "
+        "ms per phase (also in --json as 'profile')",
     )
     bench.add_argument("--json", default=None, help="write the figures as JSON")
     bench.set_defaults(func=_Bench)

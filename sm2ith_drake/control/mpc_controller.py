@@ -20,6 +20,7 @@ from sm2ith_drake.control.hierarchy import HierarchicalSolver, MpcSolution
 from sm2ith_drake.control.prediction.factory import MakePredictor
 from sm2ith_drake.control.prediction.orca_kkt import PredictionConsistency
 from sm2ith_drake.control.prediction.predict import HumanPredictorModel
+from sm2ith_drake.control.profiling import PROFILER
 from sm2ith_drake.control.program import MpcProgram
 from sm2ith_drake.control.robot_groups import ModelStep
 from sm2ith_drake.control.tasks import MakeTask
@@ -186,6 +187,7 @@ class MpcController:
         model = self.human_predictor
         return model.Predict(model.InitialState(), estimate=None)[0]
 
+    @PROFILER.Timed("warm_start")
     def WarmStart(self, state: ControllerState, q0, nu0) -> np.ndarray:
         """The previous plan's inputs shifted by one control period and rolled
         out from the measured state (a dynamically consistent guess), with
@@ -213,6 +215,7 @@ class MpcController:
             warm_start_inputs=self.WarmStartInputs(state),
         )
 
+    @PROFILER.Timed("control_step")
     def Step(
         self,
         state: ControllerState,

@@ -19,6 +19,8 @@ import numpy as np
 import piqp
 import scipy.sparse as sp
 
+from sm2ith_drake.control.profiling import PROFILER
+
 
 class PiqpWorkspace:
     """A sparse QP with a fixed pattern, solved by PIQP.
@@ -89,6 +91,7 @@ class PiqpWorkspace:
         the order :meth:`Solve` expects its values."""
         return self._p_indices, self._p_cols
 
+    @PROFILER.Timed("piqp")
     def Solve(
         self,
         p_values: np.ndarray,
@@ -116,13 +119,15 @@ class PiqpWorkspace:
                     if key == "kkt_solver" and isinstance(value, str):
                         value = getattr(piqp.KKTSolver, value)
                     setattr(solver.settings, key, value)
-                solver.setup(P, q, A, b, G, h_l, h_u, x_lower, x_upper)
+                with PROFILER.Phase("piqp_setup"):
+                    solver.setup(P, q, A, b, G, h_l, h_u, x_lower, x_upper)
                 self._solver = solver
             else:
                 self._solver.update(
                     P=P, c=q, A=A, b=b, G=G, h_l=h_l, h_u=h_u, x_l=x_lower, x_u=x_upper
                 )
-            status = self._solver.solve()
+            with PROFILER.Phase("piqp_solve"):
+                status = self._solver.solve()
         except Exception as e:  # noqa: BLE001 (an invalid setting, a NaN)
             self._solver = None
             return None, f"qp error: {e}", 0

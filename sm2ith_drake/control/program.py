@@ -36,6 +36,7 @@ from sm2ith_drake.control.groups import (
     LinearizationPoint,
     VariableLayout,
 )
+from sm2ith_drake.control.profiling import PROFILER
 from sm2ith_drake.control.robot_groups import (
     DynamicsGroup,
     Rollout,
@@ -198,6 +199,7 @@ class MpcProgram:
             upper[cols] = np.maximum(upper[cols], q)
             lower[cols] = np.minimum(lower[cols], q)
 
+    @PROFILER.Timed("kinematics")
     def MakePoint(self, z: np.ndarray, targets: dict) -> LinearizationPoint:
         q, nu, u = self.layout.Split(z)
         return LinearizationPoint(

@@ -16,6 +16,7 @@ import scipy.sparse as sp
 
 from sm2ith_drake.control.groups import ConstraintGroup
 from sm2ith_drake.control.piqp_workspace import PIQP_DEFAULT_SETTINGS, PiqpWorkspace
+from sm2ith_drake.control.profiling import PROFILER
 from sm2ith_drake.control.program import MpcProgram
 from sm2ith_drake.control.stage_problem import (
     LexicographicBand,
@@ -30,8 +31,11 @@ _MAX_STRUCTURES = 4
 
 
 def _Linearize(group: ConstraintGroup, point, num_variables):
-    g, vals = group.Eval(point)
-    Jz = np.bincount(group.rows, vals * point.z[group.cols], minlength=group.num_rows)
+    with PROFILER.Phase("linearize", group.name):
+        g, vals = group.Eval(point)
+        Jz = np.bincount(
+            group.rows, vals * point.z[group.cols], minlength=group.num_rows
+        )
     # g(z) ≈ J z + c,  c = g(z̄) − J z̄.
     return vals, g - Jz
 
@@ -76,6 +80,7 @@ class RtiStageSolver:
         for name, value in structure.items():
             setattr(self, name, value)
 
+    @PROFILER.Timed("qp_structure_build")
     def _BuildStructure(self) -> dict:
         """The QP workspace and index maps for the groups' current patterns."""
         nv = self._nv
@@ -135,6 +140,7 @@ class RtiStageSolver:
             _p_diag_index=prow[p_diag],
         )
 
+    @PROFILER.Timed("qp_assembly")
     def Solve(
         self, point, *, lower, upper, lex_bounds: dict, linearizations: dict
     ) -> StageResult:

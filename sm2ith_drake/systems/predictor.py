@@ -7,6 +7,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
 
 from sm2ith_drake.control.prediction.predict import HumanPredictorModel, NextState
+from sm2ith_drake.control.profiling import PROFILER
 from sm2ith_drake.humans.messages import (
     HumanEstimate,
     HumanIntents,
@@ -111,6 +112,7 @@ class HumanPredictor(LeafSystem):
             warm_start_inputs=plan.warm_start_inputs,
         )
 
+    @PROFILER.Timed("predictor")
     def _CalcPrediction(self, context, output):
         output.set_value(self._Predict(context)[0])
 

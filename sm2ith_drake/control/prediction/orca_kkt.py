@@ -72,6 +72,7 @@ from sm2ith_drake.control.prediction.kkt_groups import (
 )
 from sm2ith_drake.control.prediction.orca_model import OrcaModel
 from sm2ith_drake.control.prediction.slots import DefaultNeighbors
+from sm2ith_drake.control.profiling import PROFILER
 from sm2ith_drake.humans.messages import HumanPrediction
 
 
@@ -198,9 +199,10 @@ class OrcaKkt(Predictor):
         next SQP pass linearizes the KKT system at a point that satisfies it
         (a pass linearized at the previous QP's inexact KKT point was primal
         infeasible in a quarter of the steps with five people)."""
-        p, a, lam = self.model.ForwardSimulate(
-            self, self.neighbors, self.RobotViewOf(z, self.layout), p0=z[self.p[0]]
-        )
+        with PROFILER.Phase("restore_forward_sim"):
+            p, a, lam = self.model.ForwardSimulate(
+                self, self.neighbors, self.RobotViewOf(z, self.layout), p0=z[self.p[0]]
+            )
         z[self.p] = p
         z[self.a] = a
         z[self.lam] = lam

@@ -11,6 +11,7 @@ too), and one line per static wall segment.
 
 import numpy as np
 
+from sm2ith_drake.control.profiling import PROFILER
 from sm2ith_drake.humans.half_planes import obstacle_half_planes, orca_agent_half_planes
 from sm2ith_drake.humans.relaxed_orca import relaxed_orca_actions
 from sm2ith_drake.humans.robot_view import NearestBodies, RobotView
@@ -61,7 +62,8 @@ class OrcaModel:
         robot = self.robot
         G = np.stack([robot.G(qk) for qk in q])  # (T, n, m)
         if kin is None:
-            kin = robot.CalcKinematics(q)
+            with PROFILER.Phase("kinematics"):
+                kin = robot.CalcKinematics(q)
         T = len(q)
         return RobotView(
             q=q,
@@ -126,6 +128,7 @@ class OrcaModel:
         n, rho = self.AgentLines(*states, radius)
         return (n, rho) + self.StaticLines(positions)
 
+    @PROFILER.Timed("orca_line_derivatives")
     def HalfPlaneDerivatives(self, p, v, robot: RobotView, neighbors, h=1e-6):
         """Half-planes and their central-difference derivatives.
 
@@ -202,19 +205,21 @@ class OrcaModel:
         v_pref = slots.v_pref[active]
         for k in range(N):
             p = positions[k]
-            n, rho, no, rho_o = self.HalfPlanes(
-                p[None], v[None], robot.Step(k), neighbors
-            )
+            with PROFILER.Phase("orca_lines"):
+                n, rho, no, rho_o = self.HalfPlanes(
+                    p[None], v[None], robot.Step(k), neighbors
+                )
             a = np.zeros((H, 2))
             lam = np.zeros((H, R))
-            sol = self.SolveHumanQps(
-                v_pref,
-                v[active],
-                n[0, active],
-                rho[0, active],
-                no[0, active],
-                rho_o[0, active],
-            )
+            with PROFILER.Phase("human_qps"):
+                sol = self.SolveHumanQps(
+                    v_pref,
+                    v[active],
+                    n[0, active],
+                    rho[0, active],
+                    no[0, active],
+                    rho_o[0, active],
+                )
             a[active] = sol.velocity
             lam[active] = np.concatenate(
                 [

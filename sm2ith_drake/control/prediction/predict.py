@@ -27,6 +27,7 @@ from sm2ith_drake.control.prediction.slots import (
     PredictorState,
     SelectNeighbors,
 )
+from sm2ith_drake.control.profiling import PROFILER
 from sm2ith_drake.control.robot_groups import Rollout
 from sm2ith_drake.humans.messages import HumanEstimate, HumanIntents, HumanPrediction
 from sm2ith_drake.scenario import PREDICTORS
@@ -112,9 +113,10 @@ class HumanPredictorModel:
             )
             robot = self._RobotTrajectory(q0, nu0, warm_start_inputs)
             if robot is not None:
-                positions, actions, multipliers = self.orca.ForwardSimulate(
-                    slots, neighbors, robot
-                )
+                with PROFILER.Phase("predictor_forward_sim"):
+                    positions, actions, multipliers = self.orca.ForwardSimulate(
+                        slots, neighbors, robot
+                    )
         prediction = HumanPrediction(
             model=cfg.predictor,
             slot_ids=slots.slot_ids,
