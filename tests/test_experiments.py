@@ -11,12 +11,12 @@ import pytest
 
 from sm2ith_drake.experiments.campaign import (
     COLUMNS,
-    STUDIES,
     PlanRuns,
     ReadRows,
     RunCampaign,
     RunOne,
 )
+from sm2ith_drake.experiments.studies import STUDIES
 from sm2ith_drake.robots import MobileManipulator
 from sm2ith_drake.run.metrics import (
     INTIMATE_DISTANCE,
