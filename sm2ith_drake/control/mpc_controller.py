@@ -185,7 +185,9 @@ class MpcController:
     def EmptyPrediction(self) -> HumanPrediction:
         """The prediction with nobody tracked."""
         model = self.human_predictor
-        return model.Predict(model.InitialState(), estimate=None)[0]
+        prediction = model.Predict(model.InitialState(), estimate=None)[0]
+        prediction.compute_time = 0.0  # made inside the step it is used in
+        return prediction
 
     @PROFILER.Timed("warm_start")
     def WarmStart(self, state: ControllerState, q0, nu0) -> np.ndarray:
@@ -229,7 +231,8 @@ class MpcController:
         """Computes the next command; returns the new state (input unchanged).
 
         ``prediction`` is the HumanPredictor's output for this step (ignored
-        without a predictor; None: nobody tracked)."""
+        without a predictor; None: nobody tracked). The prediction's own
+        compute time counts as part of the step (record and time budget)."""
         start = time.perf_counter()
         q0 = np.asarray(q0, dtype=float)
         nu0 = np.asarray(nu0, dtype=float)
@@ -243,6 +246,7 @@ class MpcController:
             prediction = prediction or self.EmptyPrediction()
             self.predictor.SetPrediction(prediction)
             humans = prediction.estimate
+            start -= prediction.compute_time
         if np.all(np.isfinite(q0)) and np.all(np.isfinite(nu0)):
             try:
                 solution = self.solver.Solve(

@@ -91,6 +91,9 @@ class HumanPrediction:
     dropped: int = 0
     # The estimate the prediction was made from (every tracked person).
     estimate: HumanEstimate = field(default_factory=HumanEstimate)
+    # Wall time spent making this prediction (s): part of the control step's
+    # time (the controller adds it to its StepRecord and its time budget).
+    compute_time: float = 0.0
 
 
 @dataclass

@@ -13,6 +13,8 @@ motion over the horizon under the configured model:
   KKT embedding then refines jointly with the robot's plan (eq. smith).
 """
 
+import time
+
 import numpy as np
 
 from sm2ith_drake.control.prediction.base import (
@@ -93,6 +95,7 @@ class HumanPredictorModel:
         and the warm-start inputs (N, m) to simulate the people against;
         without them (or with a non-finite state) its prediction holds the
         people where they are and carries no actions."""
+        start = time.perf_counter()
         cfg = self.config
         preferred = FilterPreferredVelocities(
             state.preferred_velocities, estimate, intents, self._alpha
@@ -131,6 +134,7 @@ class HumanPredictorModel:
             dropped=slots.dropped,
             estimate=estimate if estimate is not None else HumanEstimate(),
         )
+        prediction.compute_time = time.perf_counter() - start
         return prediction, NextState(prediction)
 
     def _RobotTrajectory(self, q0, nu0, inputs):
