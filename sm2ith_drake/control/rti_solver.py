@@ -61,6 +61,9 @@ class RtiStageSolver:
         self._cost = self._problem.cost_groups
         self._settings = dict(PIQP_DEFAULT_SETTINGS)
         self._settings.update(qp_options)
+        # Not a PIQP setting: whether to update one PIQP workspace instead of
+        # setting one up per solve (PiqpWorkspace; off: reproducible runs).
+        self._reuse_workspace = bool(self._settings.pop("reuse_workspace", False))
         # Built structures (QP workspace and index maps) by sparsity pattern:
         # the pattern changes only when the predictor's neighbour sets do, and
         # a few recent ones are kept so sets that switch back cost nothing.
@@ -117,6 +120,7 @@ class RtiStageSolver:
             a_pattern=a_pattern,
             equality_rows=equality_rows,
             settings=self._settings,
+            reuse_workspace=self._reuse_workspace,
         )
         # The cost Hessian is only nonzero on the diagonal and among the
         # (few) columns the cost groups touch: it is assembled there, small
