@@ -350,3 +350,23 @@ def test_own_urdf_and_primitive_fallbacks_still_load(tmp_path, ridgeback):
     )
     result = RunSimulation(scenario, duration=0.4)
     assert np.isfinite(result.metrics["ee_position.final_error"])
+
+
+@pytest.mark.parametrize("name", ["stretch3", "ridgeback_ur10"])
+def test_drawing_puts_the_end_effector_where_the_model_has_it(name):
+    """The plant drawn in Meshcat (square position map, see AddToSceneGraph)
+    shows the end effector and the base exactly where the controller's model
+    has them."""
+    robot = MobileManipulator(name)
+    plant = robot.AddToSceneGraph(SceneGraph())
+    context = plant.CreateDefaultContext()
+    ee = plant.GetFrameByName(robot.model.ee_frame)
+    rng = np.random.default_rng(8)
+    for _ in range(20):
+        q = _RandomArmQ(robot, rng)
+        q[:3] = rng.uniform(-2, 2, 3)
+        plant.SetPositions(context, robot.plant_from_q @ q)
+        kin = robot.CalcKinematics(q)
+        np.testing.assert_allclose(
+            ee.CalcPoseInWorld(context).translation(), kin.p_WE[0], atol=1e-9
+        )

@@ -75,6 +75,14 @@ class _BodyStep:
     column: int  # this joint's Jacobian column (-1: welded); planar: 3 columns
 
 
+def _ParentBody(plant, body):
+    for i in plant.GetJointIndices():
+        joint = plant.get_joint(i)
+        if joint.child_body().index() == body.index():
+            return joint.parent_body()
+    return plant.world_body()
+
+
 def _Skew(a):
     return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
 
@@ -157,12 +165,13 @@ class MobileManipulator:
         """A new finalized plant of this robot registered with ``scene_graph``
         for drawing; its positions are ``plant_from_q @ q``.
 
-        ``plant_from_q`` is square (one plant position per entry of q), so a
-        group of coupled joints is drawn with one of them (the middle one)
-        moving by the controlled value and the others held at zero: the
-        Stretch's end of arm is drawn where it is, the inner telescope
-        segments approximately. :attr:`plant` and :meth:`PlantPositions` are
-        the exact model.
+        ``plant_from_q`` is square (one plant position per entry of q: the
+        simulation diagram builds it so), so a group of coupled joints is
+        drawn with its outermost joint moving by the controlled value and the
+        others held at zero: the Stretch's last arm segment, wrist and gripper
+        are drawn where they are, the inner telescope segments stay in the
+        sleeve (beyond about 0.26 m of extension a gap shows between them).
+        :attr:`plant` and :meth:`PlantPositions` are the exact model.
         """
         return self._MakePlant(self._DrawingUrdf(), scene_graph)
 
@@ -237,16 +246,21 @@ class MobileManipulator:
             if k not in driven:
                 raise ValueError(f"joint '{name}' is not in {self.urdf_path}")
         self._drive = drive
-        # A coupled group is drawn by its middle joint (see AddToSceneGraph).
+        # A coupled group is drawn by its outermost joint (AddToSceneGraph).
         groups = {}
         for name in model.coupled_joints:
             if name in drive:
                 groups.setdefault(model.coupled_joints[name][0], []).append(name)
+
+        def depth(joint_name):
+            body, count = plant.GetJointByName(joint_name).child_body(), 0
+            while body.index() != plant.world_body().index():
+                body = _ParentBody(plant, body)
+                count += 1
+            return count
+
         self._drawn_joint = {
-            arm: sorted(names, key=lambda j: plant.GetJointByName(j).position_start())[
-                len(names) // 2
-            ]
-            for arm, names in groups.items()
+            arm: max(names, key=depth) for arm, names in groups.items()
         }
 
         # q → plant positions: the exact model and the drawing plant.
