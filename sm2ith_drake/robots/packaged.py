@@ -54,8 +54,10 @@ _STRETCH_OMITTED_MESHES = ("d435.dae", "d405.stl")
 _MAX_FACES = 1200
 
 
-class ModelPackageError(RuntimeError):
-    """A robot description package is missing or unusable."""
+class ModelPackageError(ValueError):
+    """A robot description package is missing or unusable (a ValueError, as
+    every other unusable robot configuration: the scenario loader turns it
+    into a one-line error)."""
 
 
 def CacheDir() -> Path:
