@@ -18,8 +18,9 @@ against MultibodyPlant and the UR10 against its closed-form DH model.
 
 A controlled joint may drive several URDF joints in fixed ratios (the
 Stretch's telescoping arm: one extension, four segments each moving a
-quarter of it), so the plant can have more positions than q:
-``PlantPositions(q) = plant_from_q @ q``.
+quarter of it), so :attr:`plant` can have more positions than q:
+``PlantPositions(q) = plant_positions_from_q @ q``. ``plant_from_q`` (square)
+poses the drawing plant of :meth:`AddToSceneGraph`.
 """
 
 import os
