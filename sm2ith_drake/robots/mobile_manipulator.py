@@ -142,6 +142,7 @@ class MobileManipulator:
                 f"got {len(model.default_arm_q)}"
             )
         self._ReadCapsules()
+        self._PruneSteps()
 
     # ------------------------------------------------------------------ setup
 
@@ -455,6 +456,18 @@ class MobileManipulator:
                 raise ValueError(f"self-collision pair ({a}, {b}): unknown capsule")
             pairs.append((index[a], index[b]))
         self.self_collision_pairs = pairs
+
+    def _PruneSteps(self):
+        """Keeps only the bodies that pose a point we evaluate (the end
+        effector, the capsules, the base) and their ancestors: a packaged
+        description has many more (sensor frames, markers)."""
+        parent = {st.body: st.parent for st in self._steps}
+        needed = set()
+        for slot in [self._ee_slot, self._base_slot, *self._capsule_slots.ravel()]:
+            while slot >= 0 and slot not in needed:
+                needed.add(int(slot))
+                slot = parent[slot]
+        self._steps = [st for st in self._steps if st.body in needed]
 
     # ------------------------------------------------------------- the model
 
