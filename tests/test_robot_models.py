@@ -370,3 +370,29 @@ def test_drawing_puts_the_end_effector_where_the_model_has_it(name):
         np.testing.assert_allclose(
             ee.CalcPoseInWorld(context).translation(), kin.p_WE[0], atol=1e-9
         )
+
+
+def test_stretch_base_radius_contains_the_base_meshes(stretch):
+    """base_radius (the disc people see as the robot in their ORCA model)
+    contains, in the floor plane, every vertex of the meshes fixed to the
+    base: body, wheels, mast, head."""
+    plant = stretch.plant
+    context = plant.CreateDefaultContext()
+    plant.SetPositions(context, stretch.PlantPositions(stretch.default_q))
+    base = plant.GetBodyByName("base_link")
+    # The lift carries the whole arm: everything it moves is not the base.
+    arm = set(
+        plant.GetBodiesKinematicallyAffectedBy(
+            [plant.GetJointByName("joint_lift").index()]
+        )
+    )
+    checked = 0
+    for link, points in _OriginalMeshVertices("stretch3").items():
+        body = plant.GetBodyByName(link)
+        if body.index() in arm:
+            continue
+        X = body.body_frame().CalcPose(context, base.body_frame())
+        radius = np.linalg.norm((X @ points.T).T[:, :2], axis=1).max()
+        assert radius <= stretch.model.base_radius, (link, radius)
+        checked += 1
+    assert checked >= 10

@@ -201,7 +201,9 @@ STRETCH3 = RobotModel(
         ),
     ],
     self_collision_pairs=[("gripper", "base"), ("gripper", "mast")],
-    base_radius=0.25,
+    # Every vertex of the base's meshes (base, wheels, mast, head) lies within
+    # 0.277 m of the base origin in the plane (tests/test_robot_models.py).
+    base_radius=0.28,
 )
 
 # Ridgeback–UR10: ur_description's UR10 on our Ridgeback (models/ridgeback.urdf).
