@@ -197,7 +197,7 @@ STRETCH3 = RobotModel(
             "link_gripper_s3_body",
             (0.0, 0.015, 0.169),
             (0.0, 0.024, -0.04),
-            0.08,
+            0.07,
         ),
     ],
     self_collision_pairs=[("gripper", "base"), ("gripper", "mast")],
