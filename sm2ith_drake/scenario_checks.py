@@ -1,5 +1,23 @@
-"""Checks of the scenario values that the typed schema cannot express."""
+"""Checks of the scenario values that the typed schema cannot express.
 
+:func:`ValidateScenario` needs only the scenario: every number finite, vector
+lengths that do not depend on the robot, positive durations, periods, radii
+and speeds. :func:`ValidateScenarioForRobot` adds what needs the robot: the
+lengths of ``initial_q``, ``initial_nu`` and joint-posture targets, the start
+within the joint limits, and warnings (not errors) for people who start
+inside the robot or inside a wall. Every error is a :class:`ScenarioError`
+with a one-line message that names the field.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import sys
+
+import numpy as np
+
+from sm2ith_drake.geometry import segment_closest_points
 from sm2ith_drake.robots.models import MODELS
 from sm2ith_drake.scenario import (
     HUMAN_BEHAVIORS,
@@ -9,6 +27,55 @@ from sm2ith_drake.scenario import (
     Scenario,
     ScenarioError,
 )
+
+# The error size of each task kind that does not depend on the robot
+# (joint_posture: the number of arm joints).
+TASK_TARGET_SIZES = {
+    "ee_position": 3,
+    "base_position": 2,
+    "base_pose": 3,
+    "ee_position_in_base": 3,
+}
+
+
+def _Numbers(value, path: str):
+    """Yields (field path, number) for every number in ``value``: dataclasses,
+    Drake's config structs, lists and dicts, recursively."""
+    if isinstance(value, bool) or value is None or isinstance(value, str):
+        return
+    if isinstance(value, int | float):
+        yield path, value
+    elif dataclasses.is_dataclass(value):
+        for f in dataclasses.fields(value):
+            yield from _Numbers(getattr(value, f.name), _Join(path, f.name))
+    elif hasattr(type(value), "__fields__"):  # SimulatorConfig, DrakeLcmParams
+        for f in type(value).__fields__:
+            yield from _Numbers(getattr(value, f.name), _Join(path, f.name))
+    elif isinstance(value, list | tuple):
+        for i, item in enumerate(value):
+            yield from _Numbers(item, f"{path}[{i}]")
+    elif isinstance(value, dict):
+        for key, item in value.items():
+            yield from _Numbers(item, _Join(path, str(key)))
+
+
+def _Join(path: str, name: str) -> str:
+    return f"{path}.{name}" if path else name
+
+
+def _Positive(value, name: str) -> None:
+    if not value > 0:
+        raise ScenarioError(f"{name} must be > 0, got {value}")
+
+
+def _NonNegative(value, name: str) -> None:
+    if not value >= 0:
+        raise ScenarioError(f"{name} must be ≥ 0, got {value}")
+
+
+def _Point(value, name: str) -> None:
+    if len(value) != 2:
+        raise ScenarioError(f"{name} must be an [x, y] pair, got {list(value)}")
 
 
 def _ValidateJointLimits(robot: RobotConfig) -> None:
@@ -25,53 +92,102 @@ def _ValidateJointLimits(robot: RobotConfig) -> None:
             )
 
 
-def ValidateScenario(scenario: Scenario) -> None:
-    """Checks values that the schema cannot; raises ScenarioError."""
-    _ValidateJointLimits(scenario.robot)
+def _ValidateTasks(scenario: Scenario) -> None:
+    if not scenario.tasks:
+        raise ScenarioError("a scenario needs at least one task")
+    names = [t.name or t.kind for t in scenario.tasks]
+    if len(set(names)) != len(names):
+        raise ScenarioError(f"task names must be unique (set name:): {names}")
+    for i, task in enumerate(scenario.tasks):
+        where = f"tasks[{i}] ({task.name or task.kind})"
+        if task.kind not in TASK_KINDS:
+            raise ScenarioError(
+                f"tasks[{i}].kind: unknown task kind '{task.kind}'; valid: "
+                + ", ".join(TASK_KINDS)
+            )
+        size = TASK_TARGET_SIZES.get(task.kind)
+        if size is not None and len(task.target) != size:
+            raise ScenarioError(
+                f"{where}.target: a {task.kind} target has {size} entries, "
+                f"got {len(task.target)}"
+            )
+        if size is not None and len(task.weight) not in (0, 1, size):
+            raise ScenarioError(
+                f"{where}.weight: 1 or {size} entries for {task.kind}, "
+                f"got {len(task.weight)}"
+            )
+        for k, w in enumerate(task.weight):
+            _NonNegative(w, f"{where}.weight[{k}]")
+        _NonNegative(task.terminal_weight, f"{where}.terminal_weight")
+        _NonNegative(task.weighted_sum_weight, f"{where}.weighted_sum_weight")
+    kinds = {t.name or t.kind: t.kind for t in scenario.tasks}
+    for i, phase in enumerate(scenario.sequence):
+        unknown = (set(phase.targets) | set(phase.done_when)) - set(kinds)
+        if unknown:
+            raise ScenarioError(
+                f"sequence[{i}] names unknown tasks {sorted(unknown)}; "
+                f"tasks: {sorted(kinds)}"
+            )
+        for name, target in phase.targets.items():
+            size = TASK_TARGET_SIZES.get(kinds[name])
+            if size is not None and len(target) != size:
+                raise ScenarioError(
+                    f"sequence[{i}].targets.{name}: a {kinds[name]} target has "
+                    f"{size} entries, got {len(target)}"
+                )
+        _Positive(phase.tolerance, f"sequence[{i}].tolerance")
+        _NonNegative(phase.hold_time, f"sequence[{i}].hold_time")
+
+
+def _ValidateController(scenario: Scenario) -> None:
     c = scenario.controller
     if c.method not in ("htmpc", "weighted_sum"):
         raise ScenarioError(f"controller.method must be htmpc|weighted_sum: {c.method}")
     if c.solver not in ("rti", "snopt", "ipopt"):
         raise ScenarioError(f"controller.solver must be rti|snopt|ipopt: {c.solver}")
-    if c.horizon < 1 or c.time_step <= 0:
-        raise ScenarioError("controller.horizon must be ≥ 1 and time_step > 0")
-    if c.rti_iterations < 1 or c.rti_proximal_weight < 0:
+    if c.horizon < 1:
+        raise ScenarioError(f"controller.horizon must be ≥ 1, got {c.horizon}")
+    _Positive(c.time_step, "controller.time_step")
+    if c.rti_iterations < 1:
         raise ScenarioError(
-            "controller.rti_iterations must be ≥ 1 and rti_proximal_weight ≥ 0"
+            f"controller.rti_iterations must be ≥ 1, got {c.rti_iterations}"
         )
-    if c.lexicographic_tolerance < 0 or c.self_collision_distance < 0:
-        raise ScenarioError(
-            "controller.lexicographic_tolerance and self_collision_distance must be ≥ 0"
-        )
-    if c.control_period < 0 or c.time_budget < 0 or c.max_fallback_steps < 0:
-        raise ScenarioError(
-            "controller.control_period, time_budget and max_fallback_steps must be ≥ 0"
-        )
-    if not scenario.tasks:
-        raise ScenarioError("a scenario needs at least one task")
-    names = {t.name or t.kind for t in scenario.tasks}
-    for i, phase in enumerate(scenario.sequence):
-        unknown = (set(phase.targets) | set(phase.done_when)) - names
-        if unknown:
-            raise ScenarioError(
-                f"sequence[{i}] names unknown tasks {sorted(unknown)}; "
-                f"tasks: {sorted(names)}"
-            )
-        if phase.tolerance <= 0 or phase.hold_time < 0:
-            raise ScenarioError(f"sequence[{i}]: tolerance > 0 and hold_time ≥ 0")
+    # 0 means "the MPC step" (control_period) or "no budget" (time_budget).
+    for name in (
+        "rti_proximal_weight",
+        "lexicographic_tolerance",
+        "self_collision_distance",
+        "control_period",
+        "time_budget",
+        "max_fallback_steps",
+        "effort_weight_nu",
+        "effort_weight_u",
+    ):
+        _NonNegative(getattr(c, name), f"controller.{name}")
+
+
+def _ValidatePeople(scenario: Scenario) -> None:
     for i, h in enumerate(scenario.humans):
         if h.behavior not in HUMAN_BEHAVIORS:
             raise ScenarioError(
                 f"humans[{i}].behavior '{h.behavior}'; "
                 f"valid: {', '.join(HUMAN_BEHAVIORS)}"
             )
-        if len(h.start) != 2 or any(len(w) != 2 for w in h.waypoints):
-            raise ScenarioError(f"humans[{i}]: start and waypoints are [x, y] pairs")
-        if h.speed < 0 or h.radius <= 0:
-            raise ScenarioError(f"humans[{i}]: speed ≥ 0 and radius > 0 needed")
+        _Point(h.start, f"humans[{i}].start")
+        for k, w in enumerate(h.waypoints):
+            _Point(w, f"humans[{i}].waypoints[{k}]")
+        _Positive(h.speed, f"humans[{i}].speed")
+        _Positive(h.radius, f"humans[{i}].radius")
+        _NonNegative(h.start_time, f"humans[{i}].start_time")
     for i, o in enumerate(scenario.obstacles):
-        if len(o.vertices) < 2 or any(len(v) != 2 for v in o.vertices):
-            raise ScenarioError(f"obstacles[{i}]: at least two [x, y] vertices")
+        if len(o.vertices) < 2:
+            raise ScenarioError(
+                f"obstacles[{i}].vertices: at least two [x, y] vertices, "
+                f"got {len(o.vertices)}"
+            )
+        for k, v in enumerate(o.vertices):
+            _Point(v, f"obstacles[{i}].vertices[{k}]")
+        _Positive(o.height, f"obstacles[{i}].height")
     pr = scenario.prediction
     if pr.predictor not in PREDICTORS:
         raise ScenarioError(
@@ -82,28 +198,179 @@ def ValidateScenario(scenario: Scenario) -> None:
             f"prediction.max_humans ({pr.max_humans}) < number of humans "
             f"({len(scenario.humans)})"
         )
-    if pr.preferred_velocity_time_constant < 0:
-        raise ScenarioError("prediction.preferred_velocity_time_constant must be ≥ 0")
-    if pr.max_neighbors < 0 or pr.neighbor_hysteresis < 0:
+    for name in ("tau", "tau_obs", "max_speed", "max_acceleration"):
+        _Positive(getattr(pr, name), f"prediction.{name}")
+    for name in (
+        "slack_weight_acceleration",
+        "slack_weight_velocity",
+        "complementarity_relaxation",
+        "preferred_velocity_time_constant",
+        "max_neighbors",
+        "neighbor_hysteresis",
+    ):
+        _NonNegative(getattr(pr, name), f"prediction.{name}")
+    if not 0 <= pr.robot_share <= 1:
         raise ScenarioError(
-            "prediction.max_neighbors and prediction.neighbor_hysteresis must be ≥ 0"
+            f"prediction.robot_share must be in [0, 1], got {pr.robot_share}"
         )
-    if not 0 < scenario.safety.gamma <= 1:
-        raise ScenarioError("safety.gamma must be in (0, 1]")
-    if scenario.safety.guard_steps < 0:
-        raise ScenarioError("safety.guard_steps must be ≥ 0")
+    s = scenario.safety
+    if not 0 < s.gamma <= 1:
+        raise ScenarioError(f"safety.gamma must be in (0, 1], got {s.gamma}")
+    if s.guard_steps < 0:
+        raise ScenarioError(f"safety.guard_steps must be ≥ 0, got {s.guard_steps}")
+    _NonNegative(s.human_margin, "safety.human_margin")
+    _NonNegative(s.obstacle_margin, "safety.obstacle_margin")
+    _Positive(s.human_radius, "safety.human_radius")
     pc = scenario.perception
     if pc.estimator not in ("kalman", "truth"):
         raise ScenarioError(
             f"perception.estimator must be kalman|truth: {pc.estimator}"
         )
-    if pc.noise < 0 or not 0 <= pc.dropout_probability < 1 or pc.period <= 0:
-        raise ScenarioError("perception: noise ≥ 0, dropout in [0, 1), period > 0")
-    names = [t.name or t.kind for t in scenario.tasks]
-    if len(set(names)) != len(names):
-        raise ScenarioError(f"task names must be unique (set name:): {names}")
-    for task in scenario.tasks:
-        if task.kind not in TASK_KINDS:
+    _NonNegative(pc.noise, "perception.noise")
+    if not 0 <= pc.dropout_probability < 1:
+        raise ScenarioError(
+            "perception.dropout_probability must be in [0, 1), got "
+            f"{pc.dropout_probability}"
+        )
+    _Positive(pc.period, "perception.period")
+    _NonNegative(pc.acceleration_noise, "perception.acceleration_noise")
+    _Positive(pc.track_timeout, "perception.track_timeout")
+
+
+def _ValidateTiming(scenario: Scenario) -> None:
+    _Positive(scenario.simulation_duration, "simulation_duration")
+    _Positive(scenario.robot_time_step, "robot_time_step")
+    _Positive(scenario.crowd_time_step, "crowd_time_step")
+    _Positive(scenario.visualization.publish_period, "visualization.publish_period")
+    sim = scenario.simulator_config
+    _Positive(sim.max_step_size, "simulator_config.max_step_size")
+    _Positive(sim.accuracy, "simulator_config.accuracy")
+    _NonNegative(sim.target_realtime_rate, "simulator_config.target_realtime_rate")
+    hw = scenario.hardware
+    for name in (
+        "state_timeout",
+        "detection_timeout",
+        "detection_stop_timeout",
+        "stale_detection_speed_scale",
+    ):
+        _NonNegative(getattr(hw, name), f"hardware.{name}")
+    for name in ("poll_period", "driver_state_period", "driver_command_timeout"):
+        _Positive(getattr(hw, name), f"hardware.{name}")
+
+
+def ValidateScenario(scenario: Scenario) -> None:
+    """Checks the values that the schema cannot; raises ScenarioError."""
+    for path, value in _Numbers(scenario, ""):
+        if not math.isfinite(value):
+            raise ScenarioError(f"{path} must be a finite number, got {value}")
+    _ValidateJointLimits(scenario.robot)
+    _ValidateTiming(scenario)
+    _ValidateController(scenario)
+    _ValidateTasks(scenario)
+    _ValidatePeople(scenario)
+
+
+def ValidateScenarioForRobot(scenario: Scenario, robot, *, warn=None) -> None:
+    """The checks that need the robot (a MobileManipulator): vector lengths,
+    the start within the joint limits; people who start inside the robot's
+    capsules or inside a wall are reported to ``warn`` (default: a line on
+    stderr) with the overlap, not refused.
+
+    Raises:
+        ScenarioError: naming the field.
+    """
+    n, m = robot.num_positions, robot.num_velocities
+    rc = scenario.robot
+    if rc.initial_q and len(rc.initial_q) != n:
+        raise ScenarioError(
+            f"robot.initial_q needs {n} entries for {robot.name} "
+            f"({', '.join(robot.position_names)}), got {len(rc.initial_q)}"
+        )
+    if rc.initial_nu and len(rc.initial_nu) != m:
+        raise ScenarioError(
+            f"robot.initial_nu needs {m} entries for {robot.name} "
+            f"({', '.join(robot.velocity_names)}), got {len(rc.initial_nu)}"
+        )
+    q0 = np.asarray(rc.initial_q or robot.default_q, dtype=float)
+    for i in range(3, n):
+        if not robot.q_lower[i] - 1e-9 <= q0[i] <= robot.q_upper[i] + 1e-9:
             raise ScenarioError(
-                f"unknown task kind '{task.kind}'; valid: {', '.join(TASK_KINDS)}"
+                f"robot.initial_q[{i}] ({robot.position_names[i]}) = {q0[i]:g} is "
+                f"outside the joint limits [{robot.q_lower[i]:g}, "
+                f"{robot.q_upper[i]:g}]"
             )
+    arm = n - 3
+    kinds = {}
+    for i, task in enumerate(scenario.tasks):
+        kinds[task.name or task.kind] = task.kind
+        if task.kind == "joint_posture":
+            where = f"tasks[{i}] ({task.name or task.kind})"
+            if len(task.target) != arm:
+                raise ScenarioError(
+                    f"{where}.target: a joint_posture target of {robot.name} has "
+                    f"{arm} entries ({', '.join(robot.arm_joint_names)}), "
+                    f"got {len(task.target)}"
+                )
+            if len(task.weight) not in (0, 1, arm):
+                raise ScenarioError(
+                    f"{where}.weight: 1 or {arm} entries, got {len(task.weight)}"
+                )
+    for i, phase in enumerate(scenario.sequence):
+        for name, target in phase.targets.items():
+            if kinds.get(name) == "joint_posture" and len(target) != arm:
+                raise ScenarioError(
+                    f"sequence[{i}].targets.{name}: a joint_posture target of "
+                    f"{robot.name} has {arm} entries, got {len(target)}"
+                )
+    warn = warn or (lambda message: print(f"warning: {message}", file=sys.stderr))
+    for message in _StartOverlaps(scenario, robot, q0):
+        warn(message)
+
+
+def _StartOverlaps(scenario: Scenario, robot, q0) -> list[str]:
+    """People who start overlapping the robot (any capsule, in the plane) or
+    a wall, with the overlap in metres."""
+    out = []
+    kin = robot.CalcKinematics(q0)
+    ends = kin.capsule_points[0, :, :, :2]
+    for i, h in enumerate(scenario.humans):
+        p = np.asarray(h.start, dtype=float)
+        gaps = [
+            _PointSegmentDistance(p, a, b) - r - h.radius
+            for (a, b), r in zip(ends, robot.capsule_radii, strict=True)
+        ]
+        c = int(np.argmin(gaps))
+        if gaps[c] < 0:
+            out.append(
+                f"humans[{i}].start {list(h.start)} is inside the robot: the "
+                f"person overlaps its '{robot.capsule_names[c]}' by "
+                f"{-gaps[c]:.2f} m"
+            )
+        for k, o in enumerate(scenario.obstacles):
+            vertices = np.asarray(o.vertices, dtype=float)
+            segments = list(zip(vertices[:-1], vertices[1:], strict=True))
+            if len(vertices) >= 3:
+                segments.append((vertices[-1], vertices[0]))
+            d = min(_PointSegmentDistance(p, a, b) for a, b in segments)
+            inside = len(vertices) >= 3 and _InsidePolygon(p, vertices)
+            if inside or d < h.radius:
+                depth = d + h.radius if inside else h.radius - d
+                out.append(
+                    f"humans[{i}].start {list(h.start)} is inside obstacles[{k}]: "
+                    f"the person overlaps it by {depth:.2f} m"
+                )
+    return out
+
+
+def _PointSegmentDistance(p, a, b) -> float:
+    _, _, c1, c2 = segment_closest_points(p, p, a, b)  # p as a point segment
+    return float(np.linalg.norm(c1 - c2))
+
+
+def _InsidePolygon(p, vertices) -> bool:
+    inside = False
+    for a, b in zip(vertices, np.roll(vertices, -1, axis=0), strict=True):
+        if (a[1] > p[1]) != (b[1] > p[1]):
+            x = a[0] + (p[1] - a[1]) * (b[0] - a[0]) / (b[1] - a[1])
+            inside ^= p[0] < x
+    return inside

@@ -8,7 +8,7 @@ from pydrake.common.yaml import yaml_load_typed
 from sm2ith_drake.resources import ResolveScenarioFile
 from sm2ith_drake.robots import MobileManipulator
 from sm2ith_drake.scenario import Scenario, ScenarioError
-from sm2ith_drake.scenario_checks import ValidateScenario
+from sm2ith_drake.scenario_checks import ValidateScenario, ValidateScenarioForRobot
 
 
 def ScenarioNames(filename: str | Path) -> list[str]:
@@ -95,6 +95,7 @@ def LoadScenarioAndRobot(
         robot = MakeRobot(scenario)
     except ValueError as e:
         raise ScenarioError(_OneLine(e)) from e
+    ValidateScenarioForRobot(scenario, robot)
     return scenario, robot
 
 

@@ -9,7 +9,7 @@ from sm2ith_drake.geometry import (
     segment_closest_points,
 )
 from sm2ith_drake.robots import MobileManipulator, RobotModel
-from sm2ith_drake.robots.models import STRETCH3
+from sm2ith_drake.robots.models import STRETCH3, STRETCH3_PRIMITIVE
 
 
 @pytest.fixture(scope="module")
@@ -61,7 +61,9 @@ def test_limits_match_the_public_specs(ridgeback, stretch):
     # UR10: ±360° except the elbow (±180°); 120°/s base and shoulder,
     # 180°/s elbow and wrists; Ridgeback 1.1 m/s.
     np.testing.assert_allclose(
-        ridgeback.q_upper[3:], [6.2832, 6.2832, 3.1416, 6.2832, 6.2832, 6.2832]
+        ridgeback.q_upper[3:],
+        [6.2832, 6.2832, 3.1416, 6.2832, 6.2832, 6.2832],
+        rtol=1e-5,
     )
     np.testing.assert_allclose(
         ridgeback.nu_upper[3:], np.deg2rad([120, 120, 180, 180, 180, 180]), rtol=1e-4
@@ -131,11 +133,16 @@ def test_vectorized_kinematics_match_multibody_plant(name):
             plant.world_frame(),
             plant.world_frame(),
         )
-        np.testing.assert_allclose(kin.J_WE[k], J @ robot.plant_from_q, atol=1e-12)
+        np.testing.assert_allclose(
+            kin.J_WE[k], J @ robot.plant_positions_from_q, atol=1e-12
+        )
         for c, capsule in enumerate(robot.capsules):
-            body = plant.GetBodyByName(capsule.body)
-            X = body.body_frame().CalcPoseInWorld(context)
-            for e, p in enumerate((capsule.p_A, capsule.p_B)):
+            ends = (
+                (capsule.body, capsule.p_A),
+                (capsule.body_B or capsule.body, capsule.p_B),
+            )
+            for e, (body, p) in enumerate(ends):
+                X = plant.GetBodyByName(body).body_frame().CalcPoseInWorld(context)
                 np.testing.assert_allclose(
                     kin.capsule_points[k, c, e], X @ np.array(p), atol=1e-12
                 )
@@ -247,7 +254,9 @@ def test_bad_models_give_clear_errors(tmp_path):
         MobileManipulator("spot")
     with pytest.raises(FileNotFoundError, match="robot URDF not found"):
         MobileManipulator("stretch3", urdf_path=str(tmp_path / "missing.urdf"))
-    bad = RobotModel(**{**STRETCH3.__dict__, "arm_joints": ["joint_lift", "joint_arm"]})
+    bad = RobotModel(
+        **{**STRETCH3_PRIMITIVE.__dict__, "arm_joints": ["joint_lift", "joint_arm"]}
+    )
     with pytest.raises(ValueError, match="do not match arm_joints"):
         MobileManipulator(bad)
     bad = STRETCH3.replace(self_collision_pairs=[("gripper", "tail")])

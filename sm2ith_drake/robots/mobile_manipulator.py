@@ -15,8 +15,17 @@ instead the kinematic tree is read once from the finalized plant (fixed
 joint offsets, axes, types) and evaluated here for all knots at once with
 vectorized numpy, with analytic geometric Jacobians. The tests hold both
 against MultibodyPlant and the UR10 against its closed-form DH model.
+
+A controlled joint may drive several URDF joints in fixed ratios (the
+Stretch's telescoping arm: one extension, four segments each moving a
+quarter of it), so :attr:`plant` can have more positions than q:
+``PlantPositions(q) = plant_positions_from_q @ q``. ``plant_from_q`` (square)
+poses the drawing plant of :meth:`AddToSceneGraph`.
 """
 
+import os
+import tempfile
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -33,6 +42,7 @@ from pydrake.multibody.tree import (
 
 from sm2ith_drake.resources import GetModelsDir
 from sm2ith_drake.robots.models import BASE_KINDS, MODELS
+from sm2ith_drake.robots.packaged import PREPARERS, AddPackagePaths
 
 _WELD, _REVOLUTE, _PRISMATIC, _PLANAR = range(4)
 
@@ -63,7 +73,15 @@ class _BodyStep:
     R_MC: np.ndarray
     p_MC: np.ndarray
     axis_F: np.ndarray
-    dofs: tuple  # our q indices moved by this joint
+    column: int  # this joint's Jacobian column (-1: welded); planar: 3 columns
+
+
+def _ParentBody(plant, body):
+    for i in plant.GetJointIndices():
+        joint = plant.get_joint(i)
+        if joint.child_body().index() == body.index():
+            return joint.parent_body()
+    return plant.world_body()
 
 
 def _Skew(a):
@@ -74,14 +92,16 @@ class MobileManipulator:
     """A mobile manipulator built from a URDF plus a :class:`RobotModel`.
 
     Args:
-        model: a shipped model name ("ridgeback_ur10", "stretch3") or a
-            RobotModel describing your own robot.
+        model: a shipped model name (see ``MODELS``: "stretch3" and
+            "ridgeback_ur10" from the manufacturers' packages, and their
+            primitive fallbacks) or a RobotModel describing your own robot.
         urdf_path: a URDF replacing the model's (same link and joint names).
 
     The URDF must have a root link ``base_link``; the planar base joint is
     added here as a Drake ``PlanarJoint``. Every movable joint of the URDF
-    must be listed in ``model.arm_joints`` and carry position, velocity and
-    acceleration (``drake:acceleration``) limits.
+    must be listed in ``model.arm_joints`` or ``model.coupled_joints`` and
+    carry position limits; velocity and acceleration limits come from the
+    URDF (``drake:acceleration``) unless the model gives them.
     """
 
     def __init__(self, model="ridgeback_ur10", *, urdf_path: str | None = None):
@@ -98,13 +118,19 @@ class MobileManipulator:
         self.model = model
         self.name = model.name
         self.base_kind = model.base_kind
-        path = Path(urdf_path or model.urdf)
+        if urdf_path:
+            path = Path(urdf_path)
+        elif model.package:
+            keep = list(model.arm_joints) + list(model.coupled_joints)
+            path = PREPARERS[model.package](keep)
+        else:
+            path = Path(model.urdf)
         if not path.is_absolute() and not path.exists():
             path = GetModelsDir() / path
         if not path.exists():
             raise FileNotFoundError(f"robot URDF not found: {path}")
         self.urdf_path = str(path)
-        self.plant = self._MakePlant(None)
+        self.plant = self._MakePlant(self.urdf_path, None)
         self._ReadTree()
         self._ReadLimits()
         self.default_q = np.concatenate(
@@ -116,16 +142,20 @@ class MobileManipulator:
                 f"got {len(model.default_arm_q)}"
             )
         self._ReadCapsules()
+        self._PruneSteps()
 
     # ------------------------------------------------------------------ setup
 
-    def _MakePlant(self, scene_graph):
+    @staticmethod
+    def _MakePlant(urdf_path, scene_graph):
         plant = MultibodyPlant(0.0)
         if scene_graph is not None:
             plant.RegisterAsSourceForSceneGraph(scene_graph)
-        Parser(plant).AddModels(self.urdf_path)
+        parser = Parser(plant)
+        AddPackagePaths(parser.package_map())
+        parser.AddModels(urdf_path)
         if not plant.HasBodyNamed("base_link"):
-            raise ValueError(f"{self.urdf_path} has no link named 'base_link'")
+            raise ValueError(f"{urdf_path} has no link named 'base_link'")
         base = plant.GetBodyByName("base_link")
         plant.AddJoint(
             PlanarJoint("base", plant.world_frame(), base.body_frame(), np.zeros(3))
@@ -135,8 +165,42 @@ class MobileManipulator:
 
     def AddToSceneGraph(self, scene_graph: SceneGraph) -> MultibodyPlant:
         """A new finalized plant of this robot registered with ``scene_graph``
-        (for drawing; pose it with :meth:`PlantPositions`)."""
-        return self._MakePlant(scene_graph)
+        for drawing; its positions are ``plant_from_q @ q``.
+
+        ``plant_from_q`` is square (one plant position per entry of q: the
+        simulation diagram builds it so), so a group of coupled joints is
+        drawn with its outermost joint moving by the controlled value and the
+        others held at zero: the Stretch's last arm segment, wrist and gripper
+        are drawn where they are, the inner telescope segments stay in the
+        sleeve (beyond about 0.26 m of extension a gap shows between them).
+        :attr:`plant` and :meth:`PlantPositions` are the exact model.
+        """
+        return self._MakePlant(self._DrawingUrdf(), scene_graph)
+
+    def _DrawingUrdf(self) -> str:
+        if not self._drawn_joint:
+            return self.urdf_path
+        source = Path(self.urdf_path)
+        robot = ET.parse(source).getroot()
+        for joint in robot.findall("joint"):
+            name = joint.get("name")
+            if (
+                name in self.model.coupled_joints
+                and name not in self._drawn_joint.values()
+            ):
+                joint.set("type", "fixed")
+                for tag in ("axis", "limit", "dynamics", "mimic"):
+                    for element in joint.findall(tag):
+                        joint.remove(element)
+        # Next to the model (its meshes are named relative to it).
+        target = source.with_name(source.stem + ".drawing.urdf")
+        text = ET.tostring(robot, encoding="unicode")
+        if not target.exists() or target.read_text() != text:
+            fd, tmp = tempfile.mkstemp(dir=source.parent, suffix=".urdf")
+            with os.fdopen(fd, "w") as f:
+                f.write(text)
+            os.replace(tmp, target)
+        return str(target)
 
     def _ReadTree(self):
         plant, model = self.plant, self.model
@@ -150,25 +214,77 @@ class MobileManipulator:
             base_v = ["base_v", "base_omega"]
         self.velocity_names = base_v + [f"{j}dot" for j in model.arm_joints]
         self.num_velocities = len(self.velocity_names)
-        if plant.num_positions() != self.num_positions:
-            movable = [
-                plant.get_joint(i).name()
-                for i in plant.GetJointIndices()
-                if plant.get_joint(i).num_positions() > 0
-            ]
-            raise ValueError(
-                f"the URDF's movable joints {movable} do not match arm_joints "
-                f"{list(model.arm_joints)} (plus the planar base)"
-            )
-        # Our q order vs. the plant's.
-        self.plant_from_q = np.zeros((self.num_positions, self.num_positions))
-        base_joint = plant.GetJointByName("base")
-        for i in range(3):
-            self.plant_from_q[base_joint.position_start() + i, i] = 1.0
-        for k, name in enumerate(model.arm_joints):
-            if not plant.HasJointNamed(name):
+        self.arm_joint_names = list(model.arm_joints)
+
+        # Which of our q drives each movable plant joint, and by what ratio.
+        arm_index = {name: 3 + k for k, name in enumerate(model.arm_joints)}
+        drive = {}
+        for i in plant.GetJointIndices():
+            joint = plant.get_joint(i)
+            if joint.num_positions() == 0 or joint.name() == "base":
+                continue
+            name = joint.name()
+            if name in arm_index:
+                drive[name] = (arm_index[name], 1.0)
+            elif name in model.coupled_joints:
+                arm, ratio = model.coupled_joints[name]
+                if arm not in arm_index:
+                    raise ValueError(
+                        f"coupled joint '{name}' names '{arm}', not an arm joint"
+                    )
+                drive[name] = (arm_index[arm], float(ratio))
+            else:
+                movable = [
+                    plant.get_joint(j).name()
+                    for j in plant.GetJointIndices()
+                    if plant.get_joint(j).num_positions() > 0
+                ]
+                raise ValueError(
+                    f"the URDF's movable joints {movable} do not match arm_joints "
+                    f"{list(model.arm_joints)} (plus the planar base)"
+                )
+        driven = {k for k, _ in drive.values()}
+        for name, k in arm_index.items():
+            if k not in driven:
                 raise ValueError(f"joint '{name}' is not in {self.urdf_path}")
-            self.plant_from_q[plant.GetJointByName(name).position_start(), 3 + k] = 1.0
+        self._drive = drive
+        # A coupled group is drawn by its outermost joint (AddToSceneGraph).
+        groups = {}
+        for name in model.coupled_joints:
+            if name in drive:
+                groups.setdefault(model.coupled_joints[name][0], []).append(name)
+
+        def depth(joint_name):
+            body, count = plant.GetJointByName(joint_name).child_body(), 0
+            while body.index() != plant.world_body().index():
+                body = _ParentBody(plant, body)
+                count += 1
+            return count
+
+        self._drawn_joint = {
+            arm: max(names, key=depth) for arm, names in groups.items()
+        }
+
+        # q → plant positions: the exact model and the drawing plant.
+        n, n_plant = self.num_positions, plant.num_positions()
+        base_joint = plant.GetJointByName("base")
+        self.plant_positions_from_q = np.zeros((n_plant, n))
+        for i in range(3):
+            self.plant_positions_from_q[base_joint.position_start() + i, i] = 1.0
+        for name, (k, ratio) in drive.items():
+            start = plant.GetJointByName(name).position_start()
+            self.plant_positions_from_q[start, k] = ratio
+        if self._drawn_joint:
+            drawing = self._MakePlant(self._DrawingUrdf(), None)
+            self.plant_from_q = np.zeros((drawing.num_positions(), n))
+            start = drawing.GetJointByName("base").position_start()
+            self.plant_from_q[start : start + 3, :3] = np.eye(3)
+            for name, (k, _) in drive.items():
+                joint = drawing.GetJointByName(name)
+                if joint.num_positions():
+                    self.plant_from_q[joint.position_start(), k] = 1.0
+        else:
+            self.plant_from_q = self.plant_positions_from_q.copy()
 
         # Bodies in topological order (parents before children).
         joint_of_child = {}
@@ -187,24 +303,22 @@ class MobileManipulator:
                 frontier.append(c)
         self._slot = {b: s for s, b in enumerate(order)}
         self._num_bodies = len(order)
-        dof_of_joint = {name: 3 + k for k, name in enumerate(model.arm_joints)}
         self._steps = []
         for b in order:
             joint = joint_of_child[b]
             X_PF = joint.frame_on_parent().GetFixedPoseInBodyFrame()
             X_CM = joint.frame_on_child().GetFixedPoseInBodyFrame()
             X_MC = X_CM.inverse()
+            column = joint.position_start() if joint.num_positions() else -1
             if isinstance(joint, WeldJoint):
-                kind, axis, dofs = _WELD, np.zeros(3), ()
+                kind, axis = _WELD, np.zeros(3)
                 X_PF = X_PF.multiply(joint.X_FM())
             elif isinstance(joint, RevoluteJoint):
                 kind, axis = _REVOLUTE, np.asarray(joint.revolute_axis())
-                dofs = (dof_of_joint[joint.name()],)
             elif isinstance(joint, PrismaticJoint):
                 kind, axis = _PRISMATIC, np.asarray(joint.translation_axis())
-                dofs = (dof_of_joint[joint.name()],)
             elif isinstance(joint, PlanarJoint):
-                kind, axis, dofs = _PLANAR, np.array([0.0, 0.0, 1.0]), (0, 1, 2)
+                kind, axis = _PLANAR, np.array([0.0, 0.0, 1.0])
             else:
                 raise ValueError(
                     f"joint '{joint.name()}' of type {joint.type_name()} is not "
@@ -221,21 +335,21 @@ class MobileManipulator:
                     R_MC=X_MC.rotation().matrix(),
                     p_MC=X_MC.translation().copy(),
                     axis_F=axis,
-                    dofs=dofs,
+                    column=column,
                 )
             )
-        # Which of our dofs move each body (its ancestors' joints).
-        n = self.num_positions
-        self._ancestors = np.zeros((self._num_bodies, n), dtype=bool)
-        for step in self._steps:
-            if step.parent >= 0:
-                self._ancestors[step.body] = self._ancestors[step.parent]
-            self._ancestors[step.body, list(step.dofs)] = True
-        self._revolute_dof = np.zeros(n, dtype=bool)
-        for step in self._steps:
-            if step.kind == _REVOLUTE:
-                self._revolute_dof[step.dofs[0]] = True
-        self._revolute_dof[2] = True  # the base heading
+        # Which plant positions move each body (its ancestors' joints).
+        self._ancestors = np.zeros((self._num_bodies, n_plant), dtype=bool)
+        self._revolute_column = np.zeros(n_plant, dtype=bool)
+        for st in self._steps:
+            if st.parent >= 0:
+                self._ancestors[st.body] = self._ancestors[st.parent]
+            if st.kind == _PLANAR:
+                self._ancestors[st.body, st.column : st.column + 3] = True
+                self._revolute_column[st.column + 2] = True  # the heading
+            elif st.kind != _WELD:
+                self._ancestors[st.body, st.column] = True
+                self._revolute_column[st.column] = st.kind == _REVOLUTE
         ee = self.model.ee_frame
         if not plant.HasFrameNamed(ee):
             raise ValueError(f"end-effector frame '{ee}' is not in {self.urdf_path}")
@@ -247,18 +361,33 @@ class MobileManipulator:
     def _ReadLimits(self):
         plant, model = self.plant, self.model
         lower, upper, v_max, a_max = [], [], [], []
-        for name in model.arm_joints:
-            j = plant.GetJointByName(name)
-            lower.append(j.position_lower_limits()[0])
-            upper.append(j.position_upper_limits()[0])
-            v_max.append(j.velocity_upper_limits()[0])
-            a_max.append(j.acceleration_upper_limits()[0])
-            for what, value in (("velocity", v_max[-1]), ("acceleration", a_max[-1])):
+        for k, name in enumerate(model.arm_joints):
+            lo, hi, v, a = -np.inf, np.inf, np.inf, np.inf
+            for joint_name, (index, ratio) in self._drive.items():
+                if index != 3 + k:
+                    continue
+                j = plant.GetJointByName(joint_name)
+                # Plant position = ratio · q: every driven joint within its range.
+                bounds = np.array(
+                    [j.position_lower_limits()[0], j.position_upper_limits()[0]]
+                )
+                bounds = np.sort(bounds / ratio)
+                lo, hi = max(lo, bounds[0]), min(hi, bounds[1])
+                v = min(v, j.velocity_upper_limits()[0] / abs(ratio))
+                a = min(a, j.acceleration_upper_limits()[0] / abs(ratio))
+            v = model.velocity_limits.get(name, v)
+            a = model.acceleration_limits.get(name, a)
+            for what, value in (("velocity", v), ("acceleration", a)):
                 if not np.isfinite(value) or value <= 0:
                     raise ValueError(
                         f"joint '{name}' needs a finite {what} limit in the URDF "
-                        "(<limit velocity=... drake:acceleration=...>)"
+                        "(<limit velocity=... drake:acceleration=...>) or in the "
+                        f"RobotModel ({what}_limits)"
                     )
+            lower.append(lo)
+            upper.append(hi)
+            v_max.append(v)
+            a_max.append(a)
         nb = 3 if model.base_kind == "holonomic" else 2
         bv = np.asarray(model.base_velocity_limit, dtype=float)
         ba = np.asarray(model.base_acceleration_limit, dtype=float)
@@ -266,7 +395,6 @@ class MobileManipulator:
             raise ValueError(
                 f"a {model.base_kind} base needs {nb} velocity and acceleration limits"
             )
-        self.arm_joint_names = list(model.arm_joints)
         inf3 = np.full(3, np.inf)
         self.q_lower = np.concatenate([-inf3, lower])
         self.q_upper = np.concatenate([inf3, upper])
@@ -312,11 +440,14 @@ class MobileManipulator:
             raise ValueError("capsule names must be unique")
         slots, local = [], []
         for c in self.capsules:
-            if not plant.HasBodyNamed(c.body):
-                raise ValueError(f"capsule '{c.name}': no link '{c.body}'")
-            slots.append(self._slot[int(plant.GetBodyByName(c.body).index())])
+            ends = []
+            for body in (c.body, c.body_B or c.body):
+                if not plant.HasBodyNamed(body):
+                    raise ValueError(f"capsule '{c.name}': no link '{body}'")
+                ends.append(self._slot[int(plant.GetBodyByName(body).index())])
+            slots.append(ends)
             local.append([c.p_A, c.p_B])
-        self._capsule_slots = np.array(slots, dtype=int)
+        self._capsule_slots = np.array(slots, dtype=int).reshape(-1, 2)
         self._capsule_local = np.asarray(local, dtype=float).reshape(-1, 2, 3)
         self.capsule_radii = np.array([c.radius for c in self.capsules])
         pairs = []
@@ -326,11 +457,23 @@ class MobileManipulator:
             pairs.append((index[a], index[b]))
         self.self_collision_pairs = pairs
 
+    def _PruneSteps(self):
+        """Keeps only the bodies that pose a point we evaluate (the end
+        effector, the capsules, the base) and their ancestors: a packaged
+        description has many more (sensor frames, markers)."""
+        parent = {st.body: st.parent for st in self._steps}
+        needed = set()
+        for slot in [self._ee_slot, self._base_slot, *self._capsule_slots.ravel()]:
+            while slot >= 0 and slot not in needed:
+                needed.add(int(slot))
+                slot = parent[slot]
+        self._steps = [st for st in self._steps if st.body in needed]
+
     # ------------------------------------------------------------- the model
 
     def PlantPositions(self, q: np.ndarray) -> np.ndarray:
-        """The plant's generalized positions for our q."""
-        return self.plant_from_q @ q
+        """The generalized positions of :attr:`plant` for our q."""
+        return self.plant_positions_from_q @ q
 
     def G(self, q: np.ndarray) -> np.ndarray:
         """q̇ = G(q) ν, an (n, m) matrix."""
@@ -365,10 +508,12 @@ class MobileManipulator:
         K, n = qs.shape
         if n != self.num_positions:
             raise ValueError(f"q needs {self.num_positions} entries, got {n}")
+        qp = qs @ self.plant_positions_from_q.T  # plant positions (K, n_plant)
+        n_plant = qp.shape[1]
         R = np.empty((self._num_bodies, K, 3, 3))
         p = np.empty((self._num_bodies, K, 3))
-        axes = np.zeros((K, n, 3))  # world axis of each dof
-        origins = np.zeros((K, n, 3))  # a point on each revolute axis
+        axes = np.zeros((K, n_plant, 3))  # world axis of each plant position
+        origins = np.zeros((K, n_plant, 3))  # a point on each revolute axis
         eye = np.broadcast_to(np.eye(3), (K, 3, 3))
         for st in self._steps:
             if st.parent < 0:
@@ -378,41 +523,42 @@ class MobileManipulator:
                 R_WP, p_WP = R[st.parent], p[st.parent]
                 R_WF = R_WP @ st.R_PF
                 p_WF = p_WP + R_WP @ st.p_PF
+            col = st.column
             if st.kind == _WELD:
                 R_WM, p_WM = R_WF, p_WF
             elif st.kind == _REVOLUTE:
-                theta = qs[:, st.dofs[0]]
+                theta = qp[:, col]
                 A = _Skew(st.axis_F)
                 s, c = np.sin(theta)[:, None, None], np.cos(theta)[:, None, None]
                 R_FM = eye + s * A + (1.0 - c) * (A @ A)
                 R_WM, p_WM = R_WF @ R_FM, p_WF
-                axes[:, st.dofs[0]] = R_WF @ st.axis_F
-                origins[:, st.dofs[0]] = p_WF
+                axes[:, col] = R_WF @ st.axis_F
+                origins[:, col] = p_WF
             elif st.kind == _PRISMATIC:
                 axis_W = R_WF @ st.axis_F
                 R_WM = R_WF
-                p_WM = p_WF + axis_W * qs[:, st.dofs[0], None]
-                axes[:, st.dofs[0]] = axis_W
-            else:  # planar base, F = world frame
-                theta = qs[:, 2]
+                p_WM = p_WF + axis_W * qp[:, col, None]
+                axes[:, col] = axis_W
+            else:  # planar base (x, y, θ), F = world frame
+                theta = qp[:, col + 2]
                 c, s = np.cos(theta), np.sin(theta)
                 R_FM = np.zeros((K, 3, 3))
                 R_FM[:, 0, 0], R_FM[:, 0, 1] = c, -s
                 R_FM[:, 1, 0], R_FM[:, 1, 1] = s, c
                 R_FM[:, 2, 2] = 1.0
                 p_FM = np.zeros((K, 3))
-                p_FM[:, 0], p_FM[:, 1] = qs[:, 0], qs[:, 1]
+                p_FM[:, 0], p_FM[:, 1] = qp[:, col], qp[:, col + 1]
                 R_WM = R_WF @ R_FM
                 p_WM = p_WF + np.einsum("kij,kj->ki", R_WF, p_FM)
-                axes[:, 0] = R_WF[:, :, 0]
-                axes[:, 1] = R_WF[:, :, 1]
-                axes[:, 2] = R_WF[:, :, 2]
-                origins[:, 2] = p_WM
+                axes[:, col] = R_WF[:, :, 0]
+                axes[:, col + 1] = R_WF[:, :, 1]
+                axes[:, col + 2] = R_WF[:, :, 2]
+                origins[:, col + 2] = p_WM
             R[st.body] = R_WM @ st.R_MC
             p[st.body] = p_WM + R_WM @ st.p_MC
 
         # Points: the end effector, then both ends of every capsule.
-        slots = np.concatenate([[self._ee_slot], np.repeat(self._capsule_slots, 2)])
+        slots = np.concatenate([[self._ee_slot], self._capsule_slots.reshape(-1)])
         local = np.concatenate([self._p_BE[None], self._capsule_local.reshape(-1, 3)])
         points = p[slots].transpose(1, 0, 2) + np.einsum(
             "bkij,bj->kbi", R[slots], local
@@ -428,16 +574,17 @@ class MobileManipulator:
         )
 
     def _PointJacobians(self, points, axes, origins, masks):
-        """(K, P, 3, n) translational Jacobians of world points fixed to bodies
-        whose ancestor dofs are ``masks`` (P, n)."""
-        lever = points[:, :, None, :] - origins[:, None, :, :]  # (K, P, n, 3)
+        """(K, P, 3, n) translational Jacobians w.r.t. q of world points fixed
+        to bodies whose ancestor plant positions are ``masks`` (P, n_plant)."""
+        lever = points[:, :, None, :] - origins[:, None, :, :]  # (K, P, n_plant, 3)
         cols = np.where(
-            self._revolute_dof[None, None, :, None],
+            self._revolute_column[None, None, :, None],
             np.cross(axes[:, None, :, :], lever),
             axes[:, None, :, :],
         )
         cols = cols * masks[None, :, :, None]
-        return cols.transpose(0, 1, 3, 2)
+        # ∂p/∂q = ∂p/∂(plant positions) · plant_positions_from_q.
+        return np.einsum("kpjc,jn->kpcn", cols, self.plant_positions_from_q)
 
     def CalcEePosition(self, q: np.ndarray) -> np.ndarray:
         return self.CalcKinematics(q).p_WE[0]
