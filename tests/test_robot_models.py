@@ -3,14 +3,13 @@ MultibodyPlant on the packaged URDFs, the capsules against the meshes, and
 the meshes drawn in Meshcat and in the HTML replay."""
 
 import os
-import shutil
-import subprocess
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 import pytest
 import trimesh
+from browser_shots import CHROMIUM, Screenshot
 from pydrake.geometry import GeometrySet, Mesh, Meshcat, Role, SceneGraph
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.parsing import Parser
@@ -28,7 +27,6 @@ from sm2ith_drake.robots.packaged import (
 from sm2ith_drake.run.simulation import RunSimulation
 from sm2ith_drake.scenario_loader import LoadScenario
 
-CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 ROOT = Path(__file__).resolve().parent.parent
 
 # pycollada (trimesh's .dae reader) uses a NumPy idiom NumPy 2.5 deprecates.
@@ -227,36 +225,6 @@ def test_capsules_cover_every_mesh_vertex(name):
     )
 
 
-def _Screenshot(html, png, user_data_dir):
-    command = [
-        CHROMIUM,
-        "--headless",
-        "--no-sandbox",
-        "--disable-gpu",
-        "--no-first-run",
-        "--disable-background-networking",
-        "--disable-component-update",
-        "--disable-sync",
-        f"--user-data-dir={user_data_dir}",
-        "--window-size=800,600",
-        "--virtual-time-budget=8000",
-        f"--screenshot={png}",
-        f"file://{html}",
-    ]
-    # Headless chromium now and then hangs on this loaded machine (about one
-    # screenshot in five, whatever the page): up to three attempts.
-    for attempt in range(3):
-        try:
-            subprocess.run(command, capture_output=True, timeout=60, check=True)
-            break
-        except subprocess.TimeoutExpired:
-            if attempt == 2:
-                raise
-    import matplotlib.image
-
-    return matplotlib.image.imread(str(png))[..., :3]
-
-
 @pytest.mark.skipif(
     CHROMIUM is None and not os.environ.get("CI"),
     reason="Debian's chromium is not installed (.ci/run installs it)",
@@ -304,8 +272,8 @@ def test_meshcat_and_replay_draw_the_meshes(scenario_name, mesh_links, tmp_path)
         assert meshcat.HasPath(f"/drake/visualizer/{instance}/{link}"), link
     # A replay embeds every mesh once; a 20 s run adds only poses.
     assert html.stat().st_size < 16e6
-    background = _Screenshot(empty_html, tmp_path / "empty.png", tmp_path / "ud1")
-    replay = _Screenshot(html, tmp_path / "replay.png", tmp_path / "ud2")
+    background = Screenshot(empty_html, tmp_path / "empty.png", tmp_path / "ud1")
+    replay = Screenshot(html, tmp_path / "replay.png", tmp_path / "ud2")
     diff = np.abs(replay[40:] - background[40:]).max(axis=-1)
     changed = np.mean(diff > 0.1)
     assert changed > 0.005, f"only {changed:.2%} of the scene differs from background"
@@ -340,7 +308,9 @@ def test_own_urdf_and_primitive_fallbacks_still_load(tmp_path, ridgeback):
     own.write_text(Path(ridgeback.urdf_path).read_text())
     robot = MobileManipulator("ridgeback_ur10", urdf_path=str(own))
     q = ridgeback.default_q + 0.1
-    np.testing.assert_allclose(robot.CalcEePosition(q), ridgeback.CalcEePosition(q))
+    np.testing.assert_allclose(
+        robot.CalcKinematics(q[None]).p_WE, ridgeback.CalcKinematics(q[None]).p_WE
+    )
     for name in ("stretch3_primitive", "ridgeback_ur10_primitive"):
         primitive = MobileManipulator(name)
         assert (
@@ -358,7 +328,7 @@ def test_own_urdf_and_primitive_fallbacks_still_load(tmp_path, ridgeback):
 
 @pytest.mark.parametrize("name", ["stretch3", "ridgeback_ur10"])
 def test_drawing_puts_the_end_effector_where_the_model_has_it(name):
-    """The plant drawn in Meshcat (square position map, see AddToSceneGraph)
+    """The plant drawn in Meshcat (AddToSceneGraph, posed by plant_from_q)
     shows the end effector and the base exactly where the controller's model
     has them."""
     robot = MobileManipulator(name)

@@ -103,7 +103,7 @@ def MakeSimulation(
     # Geometry: a plant used only for its geometry, posed from q.
     scene_graph = builder.AddNamedSystem("scene_graph", SceneGraph())
     plant = robot.AddToSceneGraph(scene_graph)
-    select_q = np.hstack([robot.plant_from_q, np.zeros((n, m))])
+    select_q = np.hstack([robot.plant_from_q, np.zeros((len(robot.plant_from_q), m))])
     q_of_state = builder.AddNamedSystem("robot.q", MatrixGain(select_q))
     to_pose = builder.AddNamedSystem(
         "robot.geometry_pose", MultibodyPositionToGeometryPose(plant)

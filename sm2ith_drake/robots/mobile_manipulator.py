@@ -23,9 +23,6 @@ quarter of it), so :attr:`plant` can have more positions than q:
 poses the drawing plant of :meth:`AddToSceneGraph`.
 """
 
-import os
-import tempfile
-import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -35,16 +32,17 @@ from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import (
     PlanarJoint,
-    PrismaticJoint,
-    RevoluteJoint,
-    WeldJoint,
 )
 
 from sm2ith_drake.resources import GetModelsDir
+from sm2ith_drake.robots.body_steps import (
+    PRISMATIC,
+    REVOLUTE,
+    WELD,
+    ReadBodySteps,
+)
 from sm2ith_drake.robots.models import BASE_KINDS, MODELS
 from sm2ith_drake.robots.packaged import PREPARERS, AddPackagePaths
-
-_WELD, _REVOLUTE, _PRISMATIC, _PLANAR = range(4)
 
 
 @dataclass
@@ -59,29 +57,6 @@ class Kinematics:
     # Capsule segment endpoints in the world and their Jacobians w.r.t. q.
     capsule_points: np.ndarray  # (K, C, 2, 3)
     capsule_jacobians: np.ndarray  # (K, C, 2, 3, n)
-
-
-@dataclass
-class _BodyStep:
-    """How one body is posed from its parent (one joint of the tree)."""
-
-    body: int  # index into the pose arrays
-    parent: int  # -1 for the world
-    kind: int
-    R_PF: np.ndarray
-    p_PF: np.ndarray
-    R_MC: np.ndarray
-    p_MC: np.ndarray
-    axis_F: np.ndarray
-    column: int  # this joint's Jacobian column (-1: welded); planar: 3 columns
-
-
-def _ParentBody(plant, body):
-    for i in plant.GetJointIndices():
-        joint = plant.get_joint(i)
-        if joint.child_body().index() == body.index():
-            return joint.parent_body()
-    return plant.world_body()
 
 
 def _Skew(a):
@@ -165,42 +140,9 @@ class MobileManipulator:
 
     def AddToSceneGraph(self, scene_graph: SceneGraph) -> MultibodyPlant:
         """A new finalized plant of this robot registered with ``scene_graph``
-        for drawing; its positions are ``plant_from_q @ q``.
-
-        ``plant_from_q`` is square (one plant position per entry of q: the
-        simulation diagram builds it so), so a group of coupled joints is
-        drawn with its outermost joint moving by the controlled value and the
-        others held at zero: the Stretch's last arm segment, wrist and gripper
-        are drawn where they are, the inner telescope segments stay in the
-        sleeve (beyond about 0.26 m of extension a gap shows between them).
-        :attr:`plant` and :meth:`PlantPositions` are the exact model.
-        """
-        return self._MakePlant(self._DrawingUrdf(), scene_graph)
-
-    def _DrawingUrdf(self) -> str:
-        if not self._drawn_joint:
-            return self.urdf_path
-        source = Path(self.urdf_path)
-        robot = ET.parse(source).getroot()
-        for joint in robot.findall("joint"):
-            name = joint.get("name")
-            if (
-                name in self.model.coupled_joints
-                and name not in self._drawn_joint.values()
-            ):
-                joint.set("type", "fixed")
-                for tag in ("axis", "limit", "dynamics", "mimic"):
-                    for element in joint.findall(tag):
-                        joint.remove(element)
-        # Next to the model (its meshes are named relative to it).
-        target = source.with_name(source.stem + ".drawing.urdf")
-        text = ET.tostring(robot, encoding="unicode")
-        if not target.exists() or target.read_text() != text:
-            fd, tmp = tempfile.mkstemp(dir=source.parent, suffix=".urdf")
-            with os.fdopen(fd, "w") as f:
-                f.write(text)
-            os.replace(tmp, target)
-        return str(target)
+        for drawing; its positions are ``plant_from_q @ q`` (every coupled
+        joint moves: the Stretch's telescope is drawn segment by segment)."""
+        return self._MakePlant(self.urdf_path, scene_graph)
 
     def _ReadTree(self):
         plant, model = self.plant, self.model
@@ -248,24 +190,7 @@ class MobileManipulator:
             if k not in driven:
                 raise ValueError(f"joint '{name}' is not in {self.urdf_path}")
         self._drive = drive
-        # A coupled group is drawn by its outermost joint (AddToSceneGraph).
-        groups = {}
-        for name in model.coupled_joints:
-            if name in drive:
-                groups.setdefault(model.coupled_joints[name][0], []).append(name)
-
-        def depth(joint_name):
-            body, count = plant.GetJointByName(joint_name).child_body(), 0
-            while body.index() != plant.world_body().index():
-                body = _ParentBody(plant, body)
-                count += 1
-            return count
-
-        self._drawn_joint = {
-            arm: max(names, key=depth) for arm, names in groups.items()
-        }
-
-        # q → plant positions: the exact model and the drawing plant.
+        # q → plant positions (drawing uses the same plant).
         n, n_plant = self.num_positions, plant.num_positions()
         base_joint = plant.GetJointByName("base")
         self.plant_positions_from_q = np.zeros((n_plant, n))
@@ -274,82 +199,12 @@ class MobileManipulator:
         for name, (k, ratio) in drive.items():
             start = plant.GetJointByName(name).position_start()
             self.plant_positions_from_q[start, k] = ratio
-        if self._drawn_joint:
-            drawing = self._MakePlant(self._DrawingUrdf(), None)
-            self.plant_from_q = np.zeros((drawing.num_positions(), n))
-            start = drawing.GetJointByName("base").position_start()
-            self.plant_from_q[start : start + 3, :3] = np.eye(3)
-            for name, (k, _) in drive.items():
-                joint = drawing.GetJointByName(name)
-                if joint.num_positions():
-                    self.plant_from_q[joint.position_start(), k] = 1.0
-        else:
-            self.plant_from_q = self.plant_positions_from_q.copy()
+        self.plant_from_q = self.plant_positions_from_q
 
-        # Bodies in topological order (parents before children).
-        joint_of_child = {}
-        for i in plant.GetJointIndices():
-            joint = plant.get_joint(i)
-            joint_of_child[int(joint.child_body().index())] = joint
-        world = int(plant.world_body().index())
-        order, frontier = [], [world]
-        children = {}
-        for child, joint in joint_of_child.items():
-            children.setdefault(int(joint.parent_body().index()), []).append(child)
-        while frontier:
-            b = frontier.pop(0)
-            for c in sorted(children.get(b, [])):
-                order.append(c)
-                frontier.append(c)
-        self._slot = {b: s for s, b in enumerate(order)}
-        self._num_bodies = len(order)
-        self._steps = []
-        for b in order:
-            joint = joint_of_child[b]
-            X_PF = joint.frame_on_parent().GetFixedPoseInBodyFrame()
-            X_CM = joint.frame_on_child().GetFixedPoseInBodyFrame()
-            X_MC = X_CM.inverse()
-            column = joint.position_start() if joint.num_positions() else -1
-            if isinstance(joint, WeldJoint):
-                kind, axis = _WELD, np.zeros(3)
-                X_PF = X_PF.multiply(joint.X_FM())
-            elif isinstance(joint, RevoluteJoint):
-                kind, axis = _REVOLUTE, np.asarray(joint.revolute_axis())
-            elif isinstance(joint, PrismaticJoint):
-                kind, axis = _PRISMATIC, np.asarray(joint.translation_axis())
-            elif isinstance(joint, PlanarJoint):
-                kind, axis = _PLANAR, np.array([0.0, 0.0, 1.0])
-            else:
-                raise ValueError(
-                    f"joint '{joint.name()}' of type {joint.type_name()} is not "
-                    "supported (use revolute, prismatic or fixed joints)"
-                )
-            parent = int(joint.parent_body().index())
-            self._steps.append(
-                _BodyStep(
-                    body=self._slot[b],
-                    parent=-1 if parent == world else self._slot[parent],
-                    kind=kind,
-                    R_PF=X_PF.rotation().matrix(),
-                    p_PF=X_PF.translation().copy(),
-                    R_MC=X_MC.rotation().matrix(),
-                    p_MC=X_MC.translation().copy(),
-                    axis_F=axis,
-                    column=column,
-                )
-            )
-        # Which plant positions move each body (its ancestors' joints).
-        self._ancestors = np.zeros((self._num_bodies, n_plant), dtype=bool)
-        self._revolute_column = np.zeros(n_plant, dtype=bool)
-        for st in self._steps:
-            if st.parent >= 0:
-                self._ancestors[st.body] = self._ancestors[st.parent]
-            if st.kind == _PLANAR:
-                self._ancestors[st.body, st.column : st.column + 3] = True
-                self._revolute_column[st.column + 2] = True  # the heading
-            elif st.kind != _WELD:
-                self._ancestors[st.body, st.column] = True
-                self._revolute_column[st.column] = st.kind == _REVOLUTE
+        tree = ReadBodySteps(plant)
+        self._slot, self._num_bodies = tree.slot, tree.num_bodies
+        self._steps = tree.steps
+        self._ancestors, self._revolute_column = tree.ancestors, tree.revolute_column
         ee = self.model.ee_frame
         if not plant.HasFrameNamed(ee):
             raise ValueError(f"end-effector frame '{ee}' is not in {self.urdf_path}")
@@ -524,9 +379,9 @@ class MobileManipulator:
                 R_WF = R_WP @ st.R_PF
                 p_WF = p_WP + R_WP @ st.p_PF
             col = st.column
-            if st.kind == _WELD:
+            if st.kind == WELD:
                 R_WM, p_WM = R_WF, p_WF
-            elif st.kind == _REVOLUTE:
+            elif st.kind == REVOLUTE:
                 theta = qp[:, col]
                 A = _Skew(st.axis_F)
                 s, c = np.sin(theta)[:, None, None], np.cos(theta)[:, None, None]
@@ -534,7 +389,7 @@ class MobileManipulator:
                 R_WM, p_WM = R_WF @ R_FM, p_WF
                 axes[:, col] = R_WF @ st.axis_F
                 origins[:, col] = p_WF
-            elif st.kind == _PRISMATIC:
+            elif st.kind == PRISMATIC:
                 axis_W = R_WF @ st.axis_F
                 R_WM = R_WF
                 p_WM = p_WF + axis_W * qp[:, col, None]
@@ -585,9 +440,6 @@ class MobileManipulator:
         cols = cols * masks[None, :, :, None]
         # ∂p/∂q = ∂p/∂(plant positions) · plant_positions_from_q.
         return np.einsum("kpjc,jn->kpcn", cols, self.plant_positions_from_q)
-
-    def CalcEePosition(self, q: np.ndarray) -> np.ndarray:
-        return self.CalcKinematics(q).p_WE[0]
 
     def __repr__(self):
         return (

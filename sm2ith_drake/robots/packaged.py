@@ -26,12 +26,14 @@ from __future__ import annotations
 import copy
 import hashlib
 import importlib.metadata
+import importlib.util
 import os
 import shutil
 import tempfile
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+import trimesh
 from pydrake.multibody.parsing import PackageMap
 
 from sm2ith_drake.resources import GetModelsDir
@@ -81,11 +83,10 @@ def _Version(distribution: str) -> str:
 def StretchDescriptionDir() -> Path:
     """The installed ``stretch_urdf/SE3`` directory."""
     _Version(STRETCH_DISTRIBUTION)
-    try:
-        import stretch_urdf
-    except ImportError as e:
-        raise ModelPackageError(f"{STRETCH_DISTRIBUTION}: {e}") from e
-    path = Path(stretch_urdf.__file__).resolve().parent / "SE3"
+    spec = importlib.util.find_spec("stretch_urdf")  # located, not imported
+    if spec is None or not spec.submodule_search_locations:
+        raise ModelPackageError(f"{STRETCH_DISTRIBUTION}: no stretch_urdf package")
+    path = Path(spec.submodule_search_locations[0]).resolve() / "SE3"
     if not (path / STRETCH3_URDF).exists():
         raise ModelPackageError(f"{STRETCH_DISTRIBUTION} has no SE3/{STRETCH3_URDF}")
     return path
@@ -157,8 +158,6 @@ def _StripForDrake(robot: ET.Element, keep_joints) -> None:
 
 
 def _ConvertMesh(source: Path, target: Path) -> None:
-    import trimesh
-
     mesh = trimesh.load(str(source), force="mesh")
     if len(mesh.faces) > _MAX_FACES:
         mesh = mesh.simplify_quadric_decimation(face_count=_MAX_FACES)
