@@ -47,8 +47,13 @@ def _Point(robot_name, with_people):
     wall = ObstacleConfig(vertices=[[1.5, -0.8], [4.5, -0.8]])
     prediction = None
     if with_people:
+        # Three people with one neighbour each: the capped neighbour sets
+        # (K < H − 1) with their exact derivatives.
         prediction = PredictionConfig(
-            predictor="orca_kkt", max_humans=2, neighbor_derivatives=True
+            predictor="orca_kkt",
+            max_humans=3,
+            max_neighbors=1,
+            neighbor_derivatives=True,
         )
     c = MpcController(
         robot,
@@ -68,9 +73,9 @@ def _Point(robot_name, with_people):
         prediction, _ = model.Predict(
             model.InitialState(),
             estimate=HumanEstimate(
-                ids=[0, 1],
-                positions=[[3.0, 0.1], [3.0, 0.9]],
-                velocities=[[-1.0, 0.0], [-1.0, 0.0]],
+                ids=[0, 1, 2],
+                positions=[[3.0, 0.1], [3.0, 0.9], [3.0, 1.7]],
+                velocities=[[-1.0, 0.0], [-1.0, 0.0], [-1.0, 0.0]],
             ),
             q0=q0,
             nu0=nu0,

@@ -162,36 +162,6 @@ def _KktPoint(robot, c, humans):
     return z, {"base_position": np.array([4.0, 0.0])}
 
 
-@pytest.mark.parametrize("robot_name", ["ridgeback_ur10", "stretch3"])
-def test_kkt_group_jacobians_match_finite_differences(robot_name):
-    """With the neighbours' derivatives (the exact Jacobian), every group's
-    analytic Jacobian matches central differences; three people with one
-    neighbour each and a wall exercise the capped lines and static lines."""
-    robot, c = _KktController(robot_name, 3, max_neighbors=1, neighbor_derivatives=True)
-    z, targets = _KktPoint(robot, c, 3)
-    assert c.predictor.num_neighbors == 1 and c.predictor.num_static_lines == 1
-    program = c.program
-    for group, _, _ in program.extra_constraints:
-        g0, vals = group.Eval(program.MakePoint(z, targets))
-        J = group.DenseJacobian(vals, z.size)
-        cols = np.unique(group.cols)
-        h = 1e-6
-        for i in np.arange(z.size):
-            zp, zm = z.copy(), z.copy()
-            zp[i] += h
-            zm[i] -= h
-            fd = (
-                group.Eval(program.MakePoint(zp, targets))[0]
-                - group.Eval(program.MakePoint(zm, targets))[0]
-            ) / (2 * h)
-            if i not in cols:
-                assert np.max(np.abs(fd)) < 1e-6, (group.name, i)
-            else:
-                np.testing.assert_allclose(
-                    J[:, i], fd, atol=1e-5, err_msg=f"{group.name} column {i}"
-                )
-
-
 def test_block_jacobi_jacobian_drops_only_the_neighbour_derivatives():
     """The default (neighbor_derivatives: false) Jacobian of the KKT groups
     is the exact one without each human's derivatives w.r.t. the other
