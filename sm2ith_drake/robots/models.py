@@ -100,6 +100,16 @@ STRETCH3_PRIMITIVE = RobotModel(
     base_radius=0.25,
 )
 
+# The Ridgeback–UR10's self-collision pairs (both models' capsule names).
+_UR10_SELF_COLLISION_PAIRS = (
+    ("forearm", "base"),
+    ("wrist", "base"),
+    ("gripper", "base"),
+    ("wrist", "mount"),
+    ("gripper", "mount"),
+    ("gripper", "upper_arm"),
+)
+
 # Ridgeback–UR10. Base: holonomic, |v_x|, |v_y| ≤ 1.1 m/s (Ridgeback
 # datasheet maximum speed); |ω| ≤ 2.0 rad/s and 1.0 m/s², 2.0 rad/s² are
 # conservative choices of ours (Clearpath publishes no acceleration limits).
@@ -132,14 +142,7 @@ RIDGEBACK_UR10_PRIMITIVE = RobotModel(
         Capsule("wrist", "wrist_2_link", (0.0, 0.0, -0.06), (0.0, 0.0, 0.06), 0.06),
         Capsule("gripper", "wrist_3_link", (0.0, 0.0, 0.0), (0.0, 0.0, 0.15), 0.07),
     ],
-    self_collision_pairs=[
-        ("forearm", "base"),
-        ("wrist", "base"),
-        ("gripper", "base"),
-        ("wrist", "mount"),
-        ("gripper", "mount"),
-        ("gripper", "upper_arm"),
-    ],
+    self_collision_pairs=list(_UR10_SELF_COLLISION_PAIRS),
     base_radius=0.62,
 )
 
@@ -248,14 +251,7 @@ RIDGEBACK_UR10 = RobotModel(
         Capsule("wrist", "wrist_1_link", (0.0, 0.11, -0.06), (0.0, 0.11, 0.06), 0.06),
         Capsule("gripper", "wrist_3_link", (0.0, 0.0, 0.0), (0.0, 0.16, 0.0), 0.06),
     ],
-    self_collision_pairs=[
-        ("forearm", "base"),
-        ("wrist", "base"),
-        ("gripper", "base"),
-        ("wrist", "mount"),
-        ("gripper", "mount"),
-        ("gripper", "upper_arm"),
-    ],
+    self_collision_pairs=list(_UR10_SELF_COLLISION_PAIRS),
     base_radius=0.62,
 )
 
