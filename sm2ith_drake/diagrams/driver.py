@@ -25,16 +25,16 @@ import numpy as np
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.lcm import (
     LcmInterfaceSystem,
-    LcmPublisherSystem,
     LcmSubscriberSystem,
 )
 
 from sm2ith_drake.control.cbf import ObstacleSegments
+from sm2ith_drake.diagrams.hardware import AddLcmPublisher
 from sm2ith_drake.diagrams.people import AddCrowd, AddMocap
 from sm2ith_drake.lcm.codecs import RawLcmMessage
 from sm2ith_drake.lcm.command_follower import CommandFollower
 from sm2ith_drake.lcm.encoders import HumanDetectionsEncoder, RobotStateEncoder
-from sm2ith_drake.lcm.hardware_config import PUBLISH_DELAY, ValidateHardwareConfig
+from sm2ith_drake.lcm.hardware_config import ValidateHardwareConfig
 from sm2ith_drake.lcm.receivers import RobotCommandReceiver
 from sm2ith_drake.lcm.sm2ith_lcmtypes import (
     lcmt_sm2ith_human_detections,
@@ -125,15 +125,13 @@ def MakeDriverDiagram(*, scenario: Scenario, lcm, robot=None):
     builder.Connect(
         sim_robot.GetOutputPort("state"), state_encoder.GetInputPort("state")
     )
-    state_pub = builder.AddNamedSystem(
+    state_pub = AddLcmPublisher(
+        builder,
         "state.publisher",
-        LcmPublisherSystem.Make(
-            hardware.state_channel,
-            lcmt_sm2ith_robot_state,
-            lcm_system,
-            publish_period=hardware.driver_state_period,
-            publish_offset=PUBLISH_DELAY,
-        ),
+        hardware.state_channel,
+        lcmt_sm2ith_robot_state,
+        lcm_system,
+        hardware.driver_state_period,
     )
     builder.Connect(state_encoder.get_output_port(), state_pub.get_input_port())
 
@@ -153,15 +151,13 @@ def MakeDriverDiagram(*, scenario: Scenario, lcm, robot=None):
         builder.Connect(
             mocap.GetOutputPort("detections"), det_encoder.GetInputPort("detections")
         )
-        det_pub = builder.AddNamedSystem(
+        det_pub = AddLcmPublisher(
+            builder,
             "detections.publisher",
-            LcmPublisherSystem.Make(
-                hardware.detections_channel,
-                lcmt_sm2ith_human_detections,
-                lcm_system,
-                publish_period=scenario.perception.period,
-                publish_offset=PUBLISH_DELAY,
-            ),
+            hardware.detections_channel,
+            lcmt_sm2ith_human_detections,
+            lcm_system,
+            scenario.perception.period,
         )
         builder.Connect(det_encoder.get_output_port(), det_pub.get_input_port())
     diagram = builder.Build()

@@ -67,6 +67,22 @@ from sm2ith_drake.scenario_checks import ValidateScenario
 from sm2ith_drake.scenario_loader import MakeRobot
 
 
+def AddLcmPublisher(builder, name, channel, lcm_type, lcm, period):
+    """An LcmPublisherSystem named ``name`` publishing ``lcm_type`` on
+    ``channel`` every ``period``, just after the control instant
+    (PUBLISH_DELAY: the systems of that instant have updated)."""
+    return builder.AddNamedSystem(
+        name,
+        LcmPublisherSystem.Make(
+            channel,
+            lcm_type,
+            lcm,
+            publish_period=period,
+            publish_offset=PUBLISH_DELAY,
+        ),
+    )
+
+
 def MakeHardwareInterface(*, scenario: Scenario, lcm, robot=None):
     """The robot and the motion capture, over LCM.
 
@@ -165,15 +181,13 @@ def MakeHardwareInterface(*, scenario: Scenario, lcm, robot=None):
     builder.Connect(
         gate.GetOutputPort("gate_status"), encoder.GetInputPort("gate_status")
     )
-    command_pub = builder.AddNamedSystem(
+    command_pub = AddLcmPublisher(
+        builder,
         "command.publisher",
-        LcmPublisherSystem.Make(
-            h.command_channel,
-            lcmt_sm2ith_robot_command,
-            lcm_system,
-            publish_period=period,
-            publish_offset=PUBLISH_DELAY,
-        ),
+        h.command_channel,
+        lcmt_sm2ith_robot_command,
+        lcm_system,
+        period,
     )
     builder.Connect(encoder.get_output_port(), command_pub.get_input_port())
     # What was actually published, read back from the bus (timing).
@@ -197,15 +211,13 @@ def MakeHardwareInterface(*, scenario: Scenario, lcm, robot=None):
         builder.Connect(
             gate.GetOutputPort("gate_status"), plan_encoder.GetInputPort("gate_status")
         )
-        plan_pub = builder.AddNamedSystem(
+        plan_pub = AddLcmPublisher(
+            builder,
             "plan.publisher",
-            LcmPublisherSystem.Make(
-                h.plan_channel,
-                lcmt_sm2ith_plan,
-                lcm_system,
-                publish_period=period,
-                publish_offset=PUBLISH_DELAY,
-            ),
+            h.plan_channel,
+            lcmt_sm2ith_plan,
+            lcm_system,
+            period,
         )
         builder.Connect(plan_encoder.get_output_port(), plan_pub.get_input_port())
     diagram = builder.Build()
