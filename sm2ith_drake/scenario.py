@@ -219,6 +219,10 @@ class SafetyConfig:
     # by up to 2.3 cm. (With predicted people who avoided the base only, 3
     # steps had caused a 31 cm hit in one adversarial run: README.)
     guard_steps: int = 3
+    # "safe": the shipped safety mechanism on top of the paper's DT-CBF (the
+    # guard above); "paper": the paper's formulation, the DT-CBF against the
+    # prediction only (guard_steps ignored). Studies run both variants.
+    mode: str = "safe"
 
 
 @dataclass

@@ -216,6 +216,8 @@ def _ValidatePeople(scenario: Scenario) -> None:
     s = scenario.safety
     if not 0 < s.gamma <= 1:
         raise ScenarioError(f"safety.gamma must be in (0, 1], got {s.gamma}")
+    if s.mode not in ("safe", "paper"):
+        raise ScenarioError(f"safety.mode must be 'safe' or 'paper', got {s.mode!r}")
     if s.guard_steps < 0:
         raise ScenarioError(f"safety.guard_steps must be ≥ 0, got {s.guard_steps}")
     _NonNegative(s.human_margin, "safety.human_margin")

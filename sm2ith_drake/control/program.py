@@ -118,7 +118,11 @@ class MpcProgram:
                 human_margin=safety.human_margin,
                 obstacle_segments=segments,
                 obstacle_margin=safety.obstacle_margin,
-                guard_steps=safety.guard_steps if predictor is not None else 0,
+                guard_steps=(
+                    safety.guard_steps
+                    if predictor is not None and safety.mode == "safe"
+                    else 0
+                ),
             )
             nr = self.cbf.num_rows
             self.extra_constraints.append((self.cbf, np.zeros(nr), np.full(nr, np.inf)))
