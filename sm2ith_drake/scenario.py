@@ -106,7 +106,14 @@ class ControllerConfig:
     check_predictions: bool = False
 
 
-HUMAN_BEHAVIORS = ("orca", "social_force", "scripted", "adversarial", "relaxed_orca")
+HUMAN_BEHAVIORS = (
+    "orca",
+    "social_force",
+    "scripted",
+    "adversarial",
+    "relaxed_orca",
+    "instructed",
+)
 PREDICTORS = ("orca_kkt", "cvmm", "react")
 
 
@@ -118,7 +125,10 @@ class HumanConfig:
     # others; social_force: Helbing's social force model; scripted: follows
     # its waypoints at its speed and ignores everyone; adversarial: walks
     # straight at the robot base; relaxed_orca: walks its waypoints exactly
-    # as the SM²ITH prediction model says (humans/crowd.py).
+    # as the SM²ITH prediction model says; instructed: walks its waypoints
+    # like scripted, ignoring everyone, until the robot comes within
+    # reaction_distance, then avoids the robot alone, late, and returns to
+    # its path (humans/crowd.py).
     behavior: str = "orca"
     start: list[float] = field(default_factory=lambda: [0.0, 0.0])
     # Goals in order; the human stays at the last (or loops).
@@ -127,8 +137,15 @@ class HumanConfig:
     # Preferred walking speed (m/s) and the cylinder radius (m).
     speed: float = 1.0
     radius: float = 0.3
-    # The human stands still until this time (s).
+    # The human stands still until this time (s); with start_phase, counted
+    # from when the robot's task sequence enters that phase.
     start_time: float = 0.0
+    # The name of a phase of the scenario's ``sequence``: the human stands at
+    # its start until the robot enters that phase ("" : from the run's start).
+    start_phase: str = ""
+    # instructed: the gap between the robot's nearest body and the person's
+    # surface (m) under which the person starts avoiding the robot.
+    reaction_distance: float = 1.0
 
 
 @dataclass

@@ -179,6 +179,14 @@ def _ValidatePeople(scenario: Scenario) -> None:
         _Positive(h.speed, f"humans[{i}].speed")
         _Positive(h.radius, f"humans[{i}].radius")
         _NonNegative(h.start_time, f"humans[{i}].start_time")
+        _Positive(h.reaction_distance, f"humans[{i}].reaction_distance")
+        phases = [phase.name for phase in scenario.sequence]
+        if h.start_phase and h.start_phase not in phases:
+            valid = ", ".join(repr(n) for n in phases if n) or "none (no sequence)"
+            raise ScenarioError(
+                f"humans[{i}].start_phase '{h.start_phase}' is not a phase of "
+                f"the sequence; valid: {valid}"
+            )
     for i, o in enumerate(scenario.obstacles):
         if len(o.vertices) < 2:
             raise ScenarioError(

@@ -120,6 +120,20 @@ BAD_INPUTS = [
     ("sequence_target_length", "stretch3_reach",
      "{sequence: [{targets: {base_position: [1, 2, 3]}, done_when: [base_position]}]}",
      ["sequence[0].targets.base_position", "2 entries"]),
+    ("zero_reaction_distance", "stretch3_reach",
+     "{humans: [{behavior: instructed, start: [3, 3], waypoints: [[3, -3]], "
+     "reaction_distance: 0.0}]}",
+     ["humans[0].reaction_distance", "> 0"]),
+    ("start_phase_without_sequence", "stretch3_reach",
+     "{humans: [{behavior: scripted, start: [3, 3], waypoints: [[3, -3]], "
+     "start_phase: cross}]}",
+     ["humans[0].start_phase", "'cross'", "none (no sequence)"]),
+    ("start_phase_unknown", "stretch3_reach",
+     "{sequence: [{name: go, targets: {base_position: [1, 0]}}, "
+     "{name: back, targets: {base_position: [0, 0]}}], "
+     "humans: [{behavior: instructed, start: [3, 3], waypoints: [[3, -3]], "
+     "start_phase: cross}]}",
+     ["humans[0].start_phase", "'cross'", "valid: 'go', 'back'"]),
 ]  # fmt: skip
 
 

@@ -122,3 +122,51 @@ def test_the_diagram_chains_estimator_predictor_controller():
     dot = diagram.GetGraphvizString(max_depth=1)
     for name in ("human_estimator", "human_predictor", "controller"):
         assert f"name={name}" in dot
+
+
+# A person who crosses when the robot enters the phase "go": the robot holds
+# its start for 1 s (phase "wait"), then drives.
+PHASE_TRIGGERED = """{
+  sequence: [
+    {name: wait, targets: {base_position: [0.0, 0.0]}, done_when: [base_position],
+     tolerance: 0.5, hold_time: 1.0},
+    {name: go, targets: {base_position: [2.0, 0.0]}, done_when: [base_position]}],
+  humans: [{behavior: scripted, start: [1.0, 4.0], waypoints: [[1.0, -4.0]],
+            speed: 1.0, start_phase: go, start_time: 0.5}],
+  perception: {estimator: truth}}"""
+
+
+def test_a_cloned_context_reproduces_a_phase_triggered_crossing():
+    """The crowd learns the robot's phase from the planner; when the phase
+    was entered lives in the crowd's Context, so a clone taken before it
+    replays the same start. The person stands until the planner enters
+    "go" (its own record of when), then walks start_time later."""
+    scenario = LoadScenario(
+        filename=GetDiagramsDir() / "reach.scenarios.yaml",
+        scenario_name="stretch3_reach",
+        scenario_text=PHASE_TRIGGERED,
+    )
+    diagram = MakeSimulation(scenario=scenario)
+    first = Simulator(diagram)
+    first.AdvanceTo(0.5)
+    clone = first.get_context().Clone()
+    second = Simulator(diagram, clone)
+    _Advance(first, 2.5)
+    _Advance(second, 2.5)
+    _AssertSameRun(diagram, first.get_context(), second.get_context())
+    crowd = diagram.GetSubsystemByName("crowd")
+    planner = diagram.GetSubsystemByName("planner")
+    states = [
+        crowd.GetMyContextFromRoot(s.get_context()).get_abstract_state(0).get_value()
+        for s in (first, second)
+    ]
+    np.testing.assert_array_equal(states[0].positions, states[1].positions)
+    np.testing.assert_array_equal(states[0].phase_entered, states[1].phase_entered)
+    entered = planner.GetSequenceState(
+        planner.GetMyContextFromRoot(first.get_context())
+    ).completed_at[0]  # "wait" completed: "go" entered
+    # The crowd notices the phase at its next step (0.05 s).
+    assert entered < states[0].phase_entered[0] <= entered + 0.05 + 1e-9
+    walked = 4.0 - states[0].positions[0, 1]
+    assert 2.5 - (entered + 0.5) - 0.1 <= walked <= 2.5 - (entered + 0.5) + 1e-9
+    np.testing.assert_allclose(states[0].positions[0, 0], 1.0)

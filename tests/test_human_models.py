@@ -2,6 +2,7 @@
 the social force model and the crowd behaviours."""
 
 import numpy as np
+import pytest
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
@@ -188,3 +189,151 @@ def test_scripted_and_adversarial_behaviours():
     gap = np.linalg.norm(trace[:, 0] - [4.0, 0.0], axis=1) - 0.5 - adversary.radius
     assert np.all(gap >= 0.1 - 1e-9) and gap[-1] < 0.15
     assert np.all(np.abs(trace[:, 0, 1]) < 1e-9)
+
+
+def _Segment(p, a, b):
+    """Distance from p to the segment ab (an independent reference)."""
+    d = b - a
+    s = np.clip(np.dot(p - a, d) / np.dot(d, d), 0.0, 1.0)
+    return np.linalg.norm(p - (a + s * d))
+
+
+def _Meeting(human, robot_at, steps, *, robot_velocity=(0.0, 0.0), arm=None):
+    """Steps one person with the robot's base at robot_at(t) (radius 0.5)
+    and, with ``arm``, an arm capsule (radius 0.1) from the base to base +
+    arm. Returns the person's positions and its surface gap to the robot at
+    each state the step started from."""
+    state = InitialCrowdState([human])
+    trace, gaps = [state.positions[0].copy()], []
+    for i in range(steps):
+        base = np.asarray(robot_at(0.05 * i), dtype=float)
+        bodies = None
+        gap = np.linalg.norm(state.positions[0] - base) - 0.5
+        if arm is not None:
+            bodies = (
+                np.array([[base, base], [base, base + arm]]),
+                np.array([0.5, 0.1]),
+            )
+            tip = _Segment(state.positions[0], base, base + arm) - 0.1
+            gap = min(gap, tip)
+        gaps.append(gap - human.radius)
+        state = StepCrowd(
+            [human],
+            state,
+            time=0.05 * i,
+            dt=0.05,
+            robot_position=base,
+            robot_velocity=robot_velocity,
+            robot_radius=0.5,
+            obstacle_segments=np.zeros((0, 2, 2)),
+            tau=2.0,
+            tau_obs=0.5,
+            robot_bodies=bodies,
+        )
+        trace.append(state.positions[0].copy())
+    return np.array(trace), np.array(gaps)
+
+
+def test_instructed_person_keeps_its_path_while_the_robot_is_far():
+    """Positions equal the scripted person's on the same path, to the bit,
+    while the robot stays out of the reaction distance (here it stands 1.2 m
+    beside the path: near, but not near enough)."""
+    path = dict(start=[0, 0], waypoints=[[4, 0], [4, 3]], speed=1.2)
+    instructed = HumanConfig(behavior="instructed", **path)
+    scripted = HumanConfig(behavior="scripted", **path)
+    robot = lambda t: [2.0, -2.0]  # noqa: E731  gap 2 − 0.5 − 0.3 = 1.2 m
+    a, gaps = _Meeting(instructed, robot, 200)
+    b, _ = _Meeting(scripted, robot, 200)
+    assert np.min(gaps) > instructed.reaction_distance
+    np.testing.assert_array_equal(a, b)
+    np.testing.assert_allclose(a[-1], [4, 3], atol=0.05)
+
+
+@pytest.mark.parametrize("reaction_distance", [0.5, 1.0, 2.0])
+def test_instructed_person_deviates_only_within_its_reaction_distance(
+    reaction_distance,
+):
+    """Walking at a standing robot: the path is the scripted one up to the
+    first state within the reaction distance, and differs right after it."""
+    path = dict(start=[0, 0], waypoints=[[8, 0]], speed=1.0)
+    instructed = HumanConfig(
+        behavior="instructed", reaction_distance=reaction_distance, **path
+    )
+    a, gaps = _Meeting(instructed, lambda t: [4.0, 0.0], 240)
+    b, _ = _Meeting(HumanConfig(behavior="scripted", **path), lambda t: [4.0, 0.0], 240)
+    first = np.flatnonzero(np.any(a != b, axis=1))[0]  # first differing state
+    # The step from state first − 1 deviated; the one before did not react.
+    assert gaps[first - 1] < reaction_distance <= gaps[first - 2]
+    assert np.min(gaps) > 0.0
+    # Past the robot it returns to its path and reaches its goal.
+    np.testing.assert_allclose(a[-1], [8, 0], atol=0.05)
+
+
+def test_instructed_person_never_walks_into_an_oncoming_robot():
+    """Head-on with a robot driving at it, its arm stretched toward the
+    person: the person steps aside (to its right) and keeps clear of every
+    body, then walks back to its path's goal."""
+    human = HumanConfig(behavior="instructed", start=[0, 0], waypoints=[[8, 0]])
+    trace, gaps = _Meeting(
+        human,
+        lambda t: [6.0 - 0.3 * t, 0.0],
+        300,
+        robot_velocity=(-0.3, 0.0),
+        arm=np.array([-0.6, 0.0]),
+    )
+    assert np.min(gaps) > 0.05
+    assert np.min(trace[:, 1]) < -0.5  # went around, on its right
+    np.testing.assert_allclose(trace[-1], [8, 0], atol=0.05)
+
+
+def test_a_person_starts_when_the_robot_enters_its_phase():
+    """start_phase: standing still until the sequence enters the phase, then
+    start_time after it; a phase skipped within one crowd step still counts;
+    with no phase known (None), nobody with a start_phase moves."""
+    phases = ("go", "cross", "back")
+    humans = [
+        HumanConfig(
+            behavior="scripted",
+            start=[0, 0],
+            waypoints=[[0, 9]],
+            start_phase="cross",
+            start_time=0.5,
+        ),
+        HumanConfig(
+            behavior="instructed", start=[3, 0], waypoints=[[3, 9]], start_phase="back"
+        ),
+        HumanConfig(behavior="scripted", start=[6, 0], waypoints=[[6, 9]]),
+    ]
+
+    def Run(phase_of_time):
+        state = InitialCrowdState(humans)
+        moved, times = [], []
+        for i in range(80):
+            t = 0.05 * i
+            new = StepCrowd(
+                humans,
+                state,
+                time=t,
+                dt=0.05,
+                robot_position=[20.0, 20.0],
+                robot_velocity=[0.0, 0.0],
+                robot_radius=0.5,
+                obstacle_segments=np.zeros((0, 2, 2)),
+                tau=2.0,
+                tau_obs=0.5,
+                phases=phases,
+                phase_index=phase_of_time(t),
+            )
+            moved.append(np.any(new.positions != state.positions, axis=1))
+            times.append(t)
+            state = new
+        times = np.array(times)
+        return [times[np.argmax(m)] if np.any(m) else None for m in np.array(moved).T]
+
+    # "cross" entered at 1.0 s, "back" (index 2) jumped to at 2.0 s.
+    starts = Run(lambda t: 0 if t < 1.0 - 1e-9 else 1 if t < 2.0 - 1e-9 else 2)
+    np.testing.assert_allclose(starts, [1.5, 2.0, 0.0], atol=1e-9)
+    # The sequence went straight past both phases: both start from then.
+    starts = Run(lambda t: 0 if t < 0.5 - 1e-9 else 3)
+    np.testing.assert_allclose(starts, [1.0, 0.5, 0.0], atol=1e-9)
+    assert Run(lambda t: None)[:2] == [None, None]

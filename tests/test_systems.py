@@ -249,11 +249,11 @@ def test_crowd_simulator_walks_a_scripted_person(ridgeback):
     )
     _Ports(
         system,
-        {"robot_state": n + m},
+        {"robot_state": n + m, "task_references": None},
         {"human_truth": None, "human_intents": None},
     )
     context = system.CreateDefaultContext()
-    system.get_input_port().FixValue(context, _State(ridgeback))
+    system.GetInputPort("robot_state").FixValue(context, _State(ridgeback))
     truth = system.GetOutputPort("human_truth").Eval(context)
     np.testing.assert_array_equal(truth.positions, [[5.0, 5.0]])
     _Update(system, context)
@@ -265,6 +265,46 @@ def test_crowd_simulator_walks_a_scripted_person(ridgeback):
     # Its intent is known only to relaxed-ORCA people.
     intents = system.GetOutputPort("human_intents").Eval(context)
     assert np.all(np.isnan(intents.preferred_velocities))
+
+
+def test_crowd_simulator_starts_a_person_when_its_phase_is_entered(ridgeback):
+    """task_references tells the crowd where the sequence is: a person with
+    a start_phase stands until the phase index reaches it, then walks at
+    once (start_time 0); when it was entered is in the Context."""
+    humans = [
+        HumanConfig(
+            behavior="instructed",
+            start=[5.0, 5.0],
+            waypoints=[[5.0, 9.0]],
+            start_phase="cross",
+        )
+    ]
+    system = CrowdSimulator(
+        ridgeback,
+        humans,
+        obstacle_segments=np.zeros((0, 2, 2)),
+        time_step=0.05,
+        phases=["go", "cross"],
+    )
+    context = system.CreateDefaultContext()
+    system.GetInputPort("robot_state").FixValue(context, _State(ridgeback))
+    refs = system.GetInputPort("task_references")
+    refs.FixValue(context, TaskReferences(phase_index=0, phase="go"))
+    _Update(system, context, 0.05)
+    truth = system.GetOutputPort("human_truth")
+    np.testing.assert_array_equal(truth.Eval(context).positions, [[5.0, 5.0]])
+    refs.FixValue(context, TaskReferences(phase_index=1, phase="cross"))
+    _Update(system, context, 0.1)
+    np.testing.assert_allclose(truth.Eval(context).positions, [[5.0, 5.05]])
+    state = context.get_abstract_state(0).get_value()
+    np.testing.assert_array_equal(state.phase_entered, [0.1])
+    # A start_phase needs the input, and must be one of the phases.
+    unconnected = system.CreateDefaultContext()
+    system.GetInputPort("robot_state").FixValue(unconnected, _State(ridgeback))
+    with pytest.raises(RuntimeError, match="task_references"):
+        _Update(system, unconnected, 0.05)
+    with pytest.raises(ValueError, match="start_phase 'cross'"):
+        CrowdSimulator(ridgeback, humans, obstacle_segments=np.zeros((0, 2, 2)))
 
 
 def _Truth(count, seed=0):

@@ -16,6 +16,7 @@ def AddCrowd(builder, scenario, robot, segments):
             tau=scenario.prediction.tau,
             tau_obs=scenario.prediction.tau_obs,
             model=scenario.prediction,
+            phases=[phase.name for phase in scenario.sequence],
         ),
     )
 

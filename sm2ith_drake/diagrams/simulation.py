@@ -83,6 +83,12 @@ def MakeSimulation(
         builder.Connect(
             sim_robot.GetOutputPort("state"), crowd.GetInputPort("robot_state")
         )
+        if scenario.sequence:
+            # People who cross when the robot enters a phase (start_phase).
+            builder.Connect(
+                planner.GetOutputPort("task_references"),
+                crowd.GetInputPort("task_references"),
+            )
         if stack.detections_input is not None:
             sensor = AddMocap(builder, scenario)
             builder.Connect(

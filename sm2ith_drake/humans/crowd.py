@@ -18,7 +18,26 @@ The crowd moves with time step Δt_c. Each human has a behaviour:
   the robot's base and nearest body as agents and one line per wall
   (humans/orca_kkt.py). With ideal perception the controller also knows
   their preferred velocities, so these are the people who "behave within
-  the model" of the safety tests.
+  the model" of the safety tests;
+- ``instructed``: a person told to walk a fixed path (the paper's
+  participants): it walks its waypoints at its speed like ``scripted``,
+  ignoring the robot and everybody, until the robot (its nearest body, or
+  the base disc) comes within ``reaction_distance`` of the person's surface.
+  Then it avoids the robot late: each step, the velocity closest to its
+  path's that keeps clear of the robot alone for a short horizon (RVO2's
+  velocity selection with the robot's base and nearest body as agents,
+  inflated by ``INSTRUCTED_CLEARANCE``, over the time it takes the person
+  to walk its reaction distance, the person taking the whole avoidance, the
+  walls kept); when the robot is in its way
+  it steps to its right (``KEEP_RIGHT_ANGLE``), so a head-on meeting does not
+  end in a stand-off. Once the robot is out of reach again it heads straight
+  back to its next waypoint. It never uses the prediction's model: one of
+  the people who do not behave as SM²ITH assumes.
+
+Any person with a ``start_phase`` stands at its start until the robot's task
+sequence enters that phase; its ``start_time`` then counts from that moment
+(the crowd notices the phase at its first step in it). When the phase was
+entered is part of the CrowdState, so a cloned Context reproduces the run.
 """
 
 from dataclasses import dataclass
@@ -35,6 +54,13 @@ from sm2ith_drake.humans.social_force import social_force_step
 WAYPOINT_TOLERANCE = 0.2
 # An adversarial person stops this far from the robot's bodies (m).
 ADVERSARY_STOP_GAP = 0.1
+# An instructed person, when the robot is in its way, aims this much to its
+# right (rad), so that a head-on meeting is resolved to one side,
+# deterministically ...
+KEEP_RIGHT_ANGLE = np.radians(30.0)
+# ... and passes the robot with this much room (m): it avoids the robot's
+# bodies inflated by it, not by a hair's breadth.
+INSTRUCTED_CLEARANCE = 0.1
 
 
 @dataclass
@@ -45,6 +71,9 @@ class CrowdState:
     # The preferred velocity each "relaxed_orca" person used in its last
     # step (NaN for the other behaviours): their intent, as ground truth.
     preferred: np.ndarray | None = None
+    # (H,) when each person's ``start_phase`` was entered (NaN: not yet, or
+    # the person has none).
+    phase_entered: np.ndarray | None = None
 
 
 def InitialCrowdState(humans) -> CrowdState:
@@ -54,17 +83,48 @@ def InitialCrowdState(humans) -> CrowdState:
         velocities=np.zeros((H, 2)),
         waypoint=np.zeros(H, dtype=int),
         preferred=np.full((H, 2), np.nan),
+        phase_entered=np.full(H, np.nan),
     )
 
 
-def PreferredVelocities(humans, state: CrowdState, time: float):
+def EnterPhases(humans, phase_entered, *, phases, phase_index, time: float):
+    """``phase_entered`` updated at ``time``: a person's start phase counts as
+    entered once the sequence's ``phase_index`` (``len(phases)`` once
+    finished; None: unknown) has reached the phase's first occurrence in
+    ``phases``, the sequence's phase names, so a phase shorter than a crowd
+    step is not missed."""
+    entered = np.array(phase_entered, dtype=float)
+    if phase_index is None:
+        return entered
+    for j, h in enumerate(humans):
+        if h.start_phase and np.isnan(entered[j]):
+            if phase_index >= list(phases).index(h.start_phase):
+                entered[j] = time
+    return entered
+
+
+def StartTimes(humans, phase_entered) -> np.ndarray:
+    """(H,) when each person starts walking (s): its ``start_time``, counted
+    from the entering of its start phase if it has one (inf until then)."""
+    starts = np.array([h.start_time for h in humans], dtype=float)
+    for j, h in enumerate(humans):
+        if h.start_phase:
+            t0 = phase_entered[j]
+            starts[j] = np.inf if np.isnan(t0) else t0 + h.start_time
+    return starts
+
+
+def PreferredVelocities(humans, state: CrowdState, time: float, start_times=None):
     """Velocity toward each human's current waypoint (advancing past reached
-    waypoints), at its speed, slowing down over the last metre."""
+    waypoints), at its speed, slowing down over the last metre; zero before
+    the person's start time (``start_times``, default: its ``start_time``)."""
     H = len(humans)
     v_pref = np.zeros((H, 2))
     goals = state.positions.copy()
+    if start_times is None:
+        start_times = [h.start_time for h in humans]
     for j, h in enumerate(humans):
-        if not h.waypoints or time < h.start_time:
+        if not h.waypoints or time < start_times[j]:
             continue
         w = state.waypoint[j]
         goal = np.asarray(h.waypoints[w % len(h.waypoints)], dtype=float)
@@ -92,6 +152,74 @@ def _NearestBody(position, robot_bodies):
     return closest[i], float(radii[i]), float(d[i])
 
 
+def _RobotAgents(position, robot_position, robot_radius, robot_bodies):
+    """The robot as a person at ``position`` sees it, as ORCA agents moving
+    with the base: its base and, as a second agent, the nearest of its
+    bodies (an arm sticking out is avoided too). Positions (K, 2), radii
+    (K,)."""
+    robot_p, robot_r = [robot_position], [robot_radius]
+    if robot_bodies is not None:
+        point, r, _ = _NearestBody(position, robot_bodies)
+        if np.linalg.norm(point - robot_position) > 1e-6:
+            robot_p.append(point)
+            robot_r.append(r)
+    return np.array(robot_p, dtype=float), np.array(robot_r, dtype=float)
+
+
+def _InstructedVelocity(
+    h,
+    position,
+    velocity,
+    v_pref,
+    *,
+    robot_position,
+    robot_velocity,
+    robot_radius,
+    robot_bodies,
+    obstacle_segments,
+    tau_obs,
+    dt,
+):
+    """An instructed person's velocity: its path's (``v_pref``) while the
+    robot is farther than its reaction distance; else the velocity closest
+    to it that keeps clear of the robot alone (its bodies inflated by
+    INSTRUCTED_CLEARANCE), the person taking all of the avoidance (share 1:
+    it does not count on the robot), for as long as it takes the person to
+    walk its reaction distance (1 m at 1 m/s: 1 s, half the crowd's τ)."""
+    gap = _Gap(position, h.radius, robot_position, robot_radius, robot_bodies)
+    if gap >= h.reaction_distance:
+        return v_pref
+    robot_p, robot_r = _RobotAgents(
+        position, robot_position, robot_radius, robot_bodies
+    )
+    speed = max(h.speed, 1e-3)
+
+    def Avoid(preferred):
+        return orca_velocity(
+            position,
+            velocity,
+            h.radius,
+            robot_p,
+            np.tile(robot_velocity, (len(robot_p), 1)),
+            robot_r + INSTRUCTED_CLEARANCE,
+            preferred_velocity=preferred,
+            max_speed=speed,
+            tau=h.reaction_distance / speed,
+            tau_obs=tau_obs,
+            time_step=dt,
+            shares=1.0,
+            obstacles=[tuple(s) for s in obstacle_segments],
+        )
+
+    new_v = Avoid(v_pref)
+    if np.allclose(new_v, v_pref, rtol=0.0, atol=1e-9):
+        return new_v  # the robot is near but not in the way
+    # In the way: the person steps aside to its right. Head-on, ORCA alone
+    # would have it stop dead in front of the robot (the symmetric case).
+    c, s = np.cos(KEEP_RIGHT_ANGLE), np.sin(KEEP_RIGHT_ANGLE)
+    return Avoid(np.array([[c, s], [-s, c]]) @ v_pref)
+
+
 def _Gap(position, radius, robot_position, robot_radius, robot_bodies):
     """Clearance between a person and the nearest robot body (m)."""
     gap = np.linalg.norm(robot_position - position) - robot_radius - radius
@@ -114,25 +242,50 @@ def StepCrowd(
     tau_obs: float,
     robot_bodies=None,
     model=None,
+    phases=(),
+    phase_index=None,
 ) -> CrowdState:
     """Advances every human by dt; returns the new state.
 
     ``robot_bodies`` = (segments (C, 2, 2), radii (C,)): the robot's capsules
     projected on the floor (default: the base disc). ``model``: the
     PredictionConfig whose relaxed-ORCA model the "relaxed_orca" people
-    follow."""
+    follow. ``phases``: the names of the robot's task sequence;
+    ``phase_index``: the phase it is in (``len(phases)`` once finished;
+    None: unknown, so nobody with a ``start_phase`` starts)."""
     H = len(humans)
     p, v = state.positions.copy(), state.velocities.copy()
     radii = np.array([h.radius for h in humans], dtype=float)
-    v_pref, goals = PreferredVelocities(humans, state, time)
+    entered = state.phase_entered
+    if entered is None:
+        entered = np.full(H, np.nan)
+    entered = EnterPhases(
+        humans, entered, phases=phases, phase_index=phase_index, time=time
+    )
+    start_times = StartTimes(humans, entered)
+    v_pref, goals = PreferredVelocities(humans, state, time, start_times)
     robot_position = np.asarray(robot_position, dtype=float)[:2]
     robot_velocity = np.asarray(robot_velocity, dtype=float)[:2]
     new_v = np.zeros((H, 2))
     preferred = np.full((H, 2), np.nan)
     social = [j for j, h in enumerate(humans) if h.behavior == "social_force"]
     for j, h in enumerate(humans):
-        waiting = time < h.start_time
-        if h.behavior == "scripted" or (waiting and h.behavior != "orca"):
+        waiting = time < start_times[j]
+        if h.behavior == "instructed":
+            new_v[j] = _InstructedVelocity(
+                h,
+                p[j],
+                v[j],
+                v_pref[j],
+                robot_position=robot_position,
+                robot_velocity=robot_velocity,
+                robot_radius=robot_radius,
+                robot_bodies=robot_bodies,
+                obstacle_segments=obstacle_segments,
+                tau_obs=tau_obs,
+                dt=dt,
+            )
+        elif h.behavior == "scripted" or (waiting and h.behavior != "orca"):
             new_v[j] = v_pref[j]
         elif h.behavior == "adversarial":
             d = robot_position - p[j]
@@ -144,21 +297,15 @@ def StepCrowd(
                 new_v[j] = d / np.linalg.norm(d) * step
         elif h.behavior == "orca":
             others = [i for i in range(H) if i != j]
-            # The robot as people see it: its base and, as a second agent,
-            # the nearest of its bodies (an arm sticking out is avoided too),
-            # moving with the base.
-            robot_p, robot_r = [robot_position], [robot_radius]
-            if robot_bodies is not None:
-                point, r, _ = _NearestBody(p[j], robot_bodies)
-                if np.linalg.norm(point - robot_position) > 1e-6:
-                    robot_p.append(point)
-                    robot_r.append(r)
+            robot_p, robot_r = _RobotAgents(
+                p[j], robot_position, robot_radius, robot_bodies
+            )
             new_v[j] = orca_velocity(
                 p[j],
                 v[j],
                 h.radius,
-                np.vstack([p[others], *robot_p]),
-                np.vstack([v[others], *([robot_velocity] * len(robot_p))]),
+                np.vstack([p[others], robot_p]),
+                np.vstack([v[others], np.tile(robot_velocity, (len(robot_p), 1))]),
                 np.concatenate([radii[others], robot_r]),
                 preferred_velocity=v_pref[j],
                 max_speed=max(h.speed, 1e-3),
@@ -206,6 +353,7 @@ def StepCrowd(
         velocities=new_v,
         waypoint=state.waypoint.copy(),
         preferred=preferred,
+        phase_entered=entered,
     )
 
 

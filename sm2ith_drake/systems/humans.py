@@ -13,6 +13,7 @@ from pydrake.systems.framework import LeafSystem
 from sm2ith_drake.humans.crowd import InitialCrowdState, StepCrowd
 from sm2ith_drake.humans.messages import HumanDetections, HumanEstimate, HumanIntents
 from sm2ith_drake.humans.tracking import HumanTracks
+from sm2ith_drake.planning.sequence import TaskReferences
 
 
 class CrowdSimulator(LeafSystem):
@@ -23,6 +24,7 @@ class CrowdSimulator(LeafSystem):
         name: CrowdSimulator
         input_ports:
         - robot_state
+        - task_references (optional)
         output_ports:
         - human_truth
         - human_intents
@@ -31,6 +33,9 @@ class CrowdSimulator(LeafSystem):
     velocities (ids 0 … H−1, in scenario order); ``human_intents`` (a
     HumanIntents, for the predictor's simulation-only input) the preferred
     velocities of the people who walk as the prediction model says (NaN for the rest).
+    ``task_references`` (the TaskPlanner's) tells where the robot's task
+    sequence is; people with a ``start_phase`` need it connected. When each
+    one's phase was entered is kept in the crowd's abstract state.
     """
 
     def __init__(
@@ -43,18 +48,32 @@ class CrowdSimulator(LeafSystem):
         tau: float = 2.0,
         tau_obs: float = 0.5,
         model=None,
+        phases=(),
     ):
-        """``model``: the PredictionConfig that "relaxed_orca" people follow."""
+        """``model``: the PredictionConfig that "relaxed_orca" people follow;
+        ``phases``: the names of the task sequence's phases, in order (the
+        ``start_phase`` of a person must be one of them)."""
         super().__init__()
         self._model = model
         self._robot = robot
         self._humans = list(humans)
+        self._phases = tuple(phases)
+        for j, h in enumerate(self._humans):
+            if h.start_phase and h.start_phase not in self._phases:
+                raise ValueError(
+                    f"humans[{j}].start_phase '{h.start_phase}' is not a phase "
+                    f"of the sequence {list(self._phases)}"
+                )
+        self._needs_phase = any(h.start_phase for h in self._humans)
         self._segments = np.asarray(obstacle_segments, dtype=float).reshape(-1, 2, 2)
         self._dt = float(time_step)
         self._tau, self._tau_obs = tau, tau_obs
         n, m = robot.num_positions, robot.num_velocities
         self._n = n
         self._x = self.DeclareVectorInputPort("robot_state", n + m)
+        self._references = self.DeclareAbstractInputPort(
+            "task_references", AbstractValue.Make(TaskReferences())
+        )
         self._state = self.DeclareAbstractState(
             AbstractValue.Make(InitialCrowdState(self._humans))
         )
@@ -75,6 +94,14 @@ class CrowdSimulator(LeafSystem):
         qdot = self._robot.G(q) @ nu
         kin = self._robot.CalcKinematics(q)
         bodies = (kin.capsule_points[0, :, :, :2], self._robot.capsule_radii)
+        phase_index = None
+        if self._references.HasValue(context):
+            phase_index = self._references.Eval(context).phase_index
+        elif self._needs_phase:
+            raise RuntimeError(
+                "CrowdSimulator: people with a start_phase need the "
+                "task_references input connected (the TaskPlanner's output)"
+            )
         new = StepCrowd(
             self._humans,
             copy.deepcopy(crowd),
@@ -88,6 +115,8 @@ class CrowdSimulator(LeafSystem):
             tau_obs=self._tau_obs,
             robot_bodies=bodies,
             model=self._model,
+            phases=self._phases,
+            phase_index=phase_index,
         )
         state.get_mutable_abstract_state(self._state).set_value(new)
 
