@@ -81,8 +81,15 @@ class ControllerConfig:
     # Drake SolverOptions; the entry "PIQP" configures the rti QPs (any PIQP
     # setting, e.g. {PIQP: {max_iter: 50}}); "SNOPT" / "Ipopt" the NLPs.
     solver_options: SolverOptions = field(default_factory=SolverOptions)
-    # Sequential QP iterations per stage and control step (rti only).
+    # Sequential QP iterations per stage and control step (rti only): the
+    # most passes a step may take. With an interactive predictor a pass
+    # after the first runs only while the plan's predicted human actions are
+    # more than rti_prediction_tolerance (m/s) from what the people's model
+    # does at the plan's states (the KKT embedding has not converged); 0:
+    # always run every pass. Deterministic (no clock), so a cloned Context
+    # reproduces the run.
     rti_iterations: int = 1
+    rti_prediction_tolerance: float = 5e-3
     # Damping ½ρ‖z − z̄‖² toward the linearization point (the shifted previous
     # plan) in every RTI QP, as in Levenberg–Marquardt: it keeps single QP
     # steps where the linearization holds (near arm singularities, at the

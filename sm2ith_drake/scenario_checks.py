@@ -155,6 +155,7 @@ def _ValidateController(scenario: Scenario) -> None:
     # 0 means "the MPC step" (control_period) or "no budget" (time_budget).
     for name in (
         "rti_proximal_weight",
+        "rti_prediction_tolerance",
         "lexicographic_tolerance",
         "self_collision_distance",
         "control_period",

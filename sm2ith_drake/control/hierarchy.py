@@ -71,12 +71,14 @@ class HierarchicalSolver:
         lexicographic_tolerance: float = 1e-3,
         rti_iterations: int = 1,
         rti_proximal_weight: float = 1.0,
+        rti_prediction_tolerance: float = 0.0,
     ):
         self.program = program
         self.method = method
         self.solver_name = solver
         self.tolerance = lexicographic_tolerance
         self.rti_iterations = max(1, int(rti_iterations))
+        self.rti_prediction_tolerance = float(rti_prediction_tolerance)
         self.stages = MakeStages(program.tasks, method)
         options = solver_options if solver_options is not None else SolverOptions()
         if solver == "rti":
@@ -93,9 +95,12 @@ class HierarchicalSolver:
     def Solve(self, *, q0, nu0, targets: dict, z_guess: np.ndarray) -> MpcSolution:
         """Runs every stage in priority order from the initial guess.
 
-        RTI: each of the ``rti_iterations`` passes linearizes once, at the
-        previous pass's result, and solves the whole hierarchy on that one
-        linearization, so every stage is feasible given the stage above it.
+        RTI: each of up to ``rti_iterations`` passes linearizes once, at
+        the previous pass's result, and solves the whole hierarchy on that
+        one linearization, so every stage is feasible given the stage above
+        it. With ``rti_prediction_tolerance`` > 0, no further pass runs once
+        the plan's predicted human actions are within it of the people's
+        model at the plan's states (Predictor.PredictionErrors).
         A pass after the first that fails keeps the previous pass's plan. A
         stage below the first that fails leaves the plan of the stages above
         it (status "solved through ...": every hard constraint and the higher
@@ -129,6 +134,14 @@ class HierarchicalSolver:
                 break
             z, results, status = z_pass, pass_results, why
             passes_run = it + 1
+            if (
+                it + 1 < passes
+                and self.rti_prediction_tolerance > 0
+                and program.predictor is not None
+            ):
+                errors = program.predictor.PredictionErrors(z)
+                if not errors.size or errors.max() <= self.rti_prediction_tolerance:
+                    break
         q, nu, u = program.layout.Split(z)
         kin = program.robot.CalcKinematics(q)
         predictor = program.predictor

@@ -177,6 +177,7 @@ class MpcController:
             lexicographic_tolerance=config.lexicographic_tolerance,
             rti_iterations=config.rti_iterations,
             rti_proximal_weight=config.rti_proximal_weight,
+            rti_prediction_tolerance=config.rti_prediction_tolerance,
         )
         self.safety = safety or SafetyConfig()
         self.period = ControlPeriod(config)

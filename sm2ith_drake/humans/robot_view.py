@@ -44,15 +44,17 @@ class NearestBody:
 
     point: np.ndarray  # (T, H, 2)
     radius: np.ndarray  # (T, H)
-    d_dq: np.ndarray  # (T, H, 2, n)
-    d_dp: np.ndarray  # (T, H, 2, 2)
+    d_dq: np.ndarray | None  # (T, H, 2, n)
+    d_dp: np.ndarray | None  # (T, H, 2, 2)
 
 
-def NearestBodies(robot: RobotView, positions) -> NearestBody:
+def NearestBodies(robot: RobotView, positions, derivatives: bool = True) -> NearestBody:
     """The nearest robot body of every person (as humans/crowd.py's
     _NearestBody) with the derivatives of its closest point: for
     c = A + s(B − A), s = clip((P − A)·d / d·d) with d = B − A, the clipped
-    ends move with A or B, and inside ∂s follows from the quotient rule."""
+    ends move with A or B, and inside ∂s follows from the quotient rule.
+    Without ``derivatives`` d_dq and d_dp are None (a forward simulation
+    needs the points only)."""
     P = np.asarray(positions, dtype=float)  # (T, H, 2)
     A = robot.ends[:, None, :, 0]  # (T, 1, C, 2)
     B = robot.ends[:, None, :, 1]
@@ -66,6 +68,10 @@ def NearestBodies(robot: RobotView, positions) -> NearestBody:
     T, H = P.shape[:2]
     t_idx, h_idx = np.meshgrid(np.arange(T), np.arange(H), indexing="ij")
     s_i = s[t_idx, h_idx, i]
+    if not derivatives:
+        return NearestBody(
+            point=closest[t_idx, h_idx, i], radius=robot.radii[i], d_dq=None, d_dp=None
+        )
     d_i = d[t_idx, 0, i]  # (T, H, 2)
     w_i = w[t_idx, h_idx, i]
     dd_i = dd[t_idx, 0, i]

@@ -84,6 +84,12 @@ class Predictor:
     def Predictions(self, z: np.ndarray) -> np.ndarray:
         return z[self.p].copy()
 
+    def PredictionErrors(self, z: np.ndarray) -> np.ndarray:
+        """How far plan z's predicted human actions are from what the
+        people's model does at z's states (m/s, one per step and active
+        person). Empty for React and CVMM: their predictions are fixed."""
+        return np.zeros(0)
+
 
 class React(Predictor):
     """Humans held at their current positions (no prediction)."""

@@ -194,6 +194,10 @@ class OrcaKkt(Predictor):
         z[self.a] = prediction.actions
         z[self.lam] = prediction.multipliers
 
+    def PredictionErrors(self, z):
+        """PredictionConsistency of plan z, flattened."""
+        return PredictionConsistency(self, z, self.layout).ravel()
+
     def Restore(self, z):
         """The humans' exact relaxed-ORCA responses to z's robot plan, so the
         next SQP pass linearizes the KKT system at a point that satisfies it
@@ -212,6 +216,11 @@ def PredictionConsistency(predictor, z, layout) -> np.ndarray:
     """The honest check of the KKT embedding: re-solve every active human's
     relaxed-ORCA QP at the predicted states of plan z and return
     ‖a_QP − a_predicted‖ for every (k, j) (m/s), shape (N, active)."""
+    with PROFILER.Phase("prediction_check"):
+        return _PredictionConsistency(predictor, z, layout)
+
+
+def _PredictionConsistency(predictor, z, layout):
     p, v, robot = predictor.LocalState(z, layout)
     n, rho, no, rho_o = predictor.HalfPlanes(p, v, robot)
     a = z[predictor.a]

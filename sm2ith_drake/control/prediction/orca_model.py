@@ -75,7 +75,9 @@ class OrcaModel:
             radii=robot.capsule_radii,
         )
 
-    def AgentStates(self, positions, velocities, robot: RobotView, neighbors):
+    def AgentStates(
+        self, positions, velocities, robot: RobotView, neighbors, derivatives=False
+    ):
         """Each line's own and other agent's states, (T, H, A, 2) each (own
         p, own v, other p, other v), the combined radii (T, H, A) and the
         nearest robot bodies. The lines are the K neighbours', the robot
@@ -83,7 +85,7 @@ class OrcaModel:
         axis of the capsule nearest to the person, moving with the base."""
         T, H, A = positions.shape[0], self.num_slots, self.num_agent_lines
         shape = (T, H, A, 2)
-        body = NearestBodies(robot, positions)
+        body = NearestBodies(robot, positions, derivatives)
         robot_p = np.broadcast_to(robot.p[:, None, None], (T, H, 1, 2))
         robot_v = np.broadcast_to(robot.v[:, None, None], (T, H, 2, 2))
         nb = neighbors
@@ -140,34 +142,35 @@ class OrcaModel:
         applied by the chain rule in KktBlocks). Static lines depend on the
         own position only: dn_o (T, H, S, 2, 2), dρ_o (T, H, S, 2). Also
         returns the NearestBodies."""
-        states, radius, body = self.AgentStates(p, v, robot, neighbors)
-        n, rho = self.AgentLines(*states, radius)
-        no, rho_o = self.StaticLines(p)
-        T, H = p.shape[0], self.num_slots
-        A, S = self.num_agent_lines, self.num_static_lines
-        dn = np.zeros((T, H, A, 2, 8))
-        drho = np.zeros((T, H, A, 8))
+        states, radius, body = self.AgentStates(p, v, robot, neighbors, True)
+        # All 16 perturbed copies of the inputs (±h in each of the 8
+        # coordinates) and the unperturbed one, in one vectorized call.
+        stacked = np.broadcast_to(np.stack(states), (17,) + np.shape(states))
+        stacked = stacked.copy()  # (17, 4, T, H, A, 2)
         for which in range(4):
             for c in range(2):
-                pm = []
-                for sign in (1.0, -1.0):
-                    args = list(states)
-                    args[which] = args[which].copy()
-                    args[which][..., c] += sign * h
-                    pm.append(self.AgentLines(*args, radius))
-                dn[..., 2 * which + c] = (pm[0][0] - pm[1][0]) / (2 * h)
-                drho[..., 2 * which + c] = (pm[0][1] - pm[1][1]) / (2 * h)
-        dno = np.zeros((T, H, S, 2, 2))
-        drho_o = np.zeros((T, H, S, 2))
-        if S:
+                k = 2 * (2 * which + c)
+                stacked[1 + k, which, ..., c] += h
+                stacked[2 + k, which, ..., c] -= h
+        n_all, rho_all = self.AgentLines(*np.moveaxis(stacked, 1, 0), radius)
+        n, rho = n_all[0], rho_all[0]
+        # (8, T, H, A, ...) → derivative axis last.
+        dn = np.moveaxis((n_all[1::2] - n_all[2::2]) / (2 * h), 0, -1)
+        drho = np.moveaxis((rho_all[1::2] - rho_all[2::2]) / (2 * h), 0, -1)
+        if self.num_static_lines:
+            q = np.broadcast_to(p, (5,) + p.shape).copy()
             for c in range(2):
-                pm = []
-                for sign in (1.0, -1.0):
-                    q = p.copy()
-                    q[..., c] += sign * h
-                    pm.append(self.StaticLines(q))
-                dno[..., c] = (pm[0][0] - pm[1][0]) / (2 * h)
-                drho_o[..., c] = (pm[0][1] - pm[1][1]) / (2 * h)
+                q[1 + 2 * c, ..., c] += h
+                q[2 + 2 * c, ..., c] -= h
+            no_all, rho_o_all = self.StaticLines(q)
+            no, rho_o = no_all[0], rho_o_all[0]
+            dno = np.moveaxis((no_all[1::2] - no_all[2::2]) / (2 * h), 0, -1)
+            drho_o = np.moveaxis((rho_o_all[1::2] - rho_o_all[2::2]) / (2 * h), 0, -1)
+        else:
+            no, rho_o = self.StaticLines(p)
+            T, H = p.shape[0], self.num_slots
+            dno = np.zeros((T, H, 0, 2, 2))
+            drho_o = np.zeros((T, H, 0, 2))
         return (n, rho, no, rho_o), (dn, drho, dno, drho_o), body
 
     def SolveHumanQps(self, v_pref, v, n, rho, no, rho_o):
