@@ -22,10 +22,9 @@ lines (walls, boxes apart from each other) are unaffected.
 import numpy as np
 
 from sm2ith_drake.geometry import point_segment_distance_2d
+from sm2ith_drake.humans.kernels import agent_lines
 
 RVO_EPSILON = 1e-5
-# Guards divisions in the vectorized agent lines (degenerate geometry only).
-_EPS = 1e-9
 
 
 def _Det(a, b):
@@ -246,10 +245,6 @@ def _ObstacleLines(position, velocity, radius, vertices, tau_obs, range_sq):
     return lines
 
 
-def _DetVec(a, b):
-    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
-
-
 def orca_agent_lines(rel_position, rel_velocity, combined_radius, *, tau, time_step):
     """ORCA's u and line direction for many agent pairs at once (RVO2's
     Agent::computeNewVelocity, agent part), vectorized.
@@ -264,53 +259,19 @@ def orca_agent_lines(rel_position, rel_velocity, combined_radius, *, tau, time_s
         velocity obstacle, and direction (..., 2) of the ORCA line. The line
         passes through v + share·u; allowed velocities lie to its left.
     """
-    P = np.asarray(rel_position, dtype=float)
-    V = np.asarray(rel_velocity, dtype=float)
-    R = np.broadcast_to(np.asarray(combined_radius, dtype=float), P.shape[:-1])
-    dist_sq = np.sum(P * P, axis=-1)
-    R_sq = R * R
-    colliding = dist_sq <= R_sq
-
-    # No collision: w relative to the cutoff-circle centre.
-    w = V - P / tau
-    w_len_sq = np.sum(w * w, axis=-1)
-    dot1 = np.sum(w * P, axis=-1)
-    cutoff = (dot1 < 0.0) & (dot1 * dot1 > R_sq * w_len_sq)
-    w_len = np.sqrt(np.maximum(w_len_sq, _EPS))
-    unit_w = w / w_len[..., None]
-    dir_cut = np.stack([unit_w[..., 1], -unit_w[..., 0]], axis=-1)
-    u_cut = (R / tau - w_len)[..., None] * unit_w
-    leg = np.sqrt(np.maximum(dist_sq - R_sq, 0.0))
-    safe_dist_sq = np.maximum(dist_sq, _EPS)
-    left = _DetVec(P, w) > 0.0
-    dir_left = (
-        np.stack(
-            [P[..., 0] * leg - P[..., 1] * R, P[..., 0] * R + P[..., 1] * leg], axis=-1
-        )
-        / safe_dist_sq[..., None]
+    shape = np.broadcast_shapes(
+        np.shape(rel_position),
+        np.shape(rel_velocity),
+        np.shape(combined_radius) + (2,),
     )
-    dir_right = (
-        -np.stack(
-            [P[..., 0] * leg + P[..., 1] * R, -P[..., 0] * R + P[..., 1] * leg], axis=-1
-        )
-        / safe_dist_sq[..., None]
-    )
-    dir_leg = np.where(left[..., None], dir_left, dir_right)
-    dot2 = np.sum(V * dir_leg, axis=-1)
-    u_leg = dot2[..., None] * dir_leg - V
-
-    # Collision: cutoff circle of the time step.
-    w_c = V - P / time_step
-    w_c_len = np.sqrt(np.maximum(np.sum(w_c * w_c, axis=-1), _EPS))
-    unit_c = w_c / w_c_len[..., None]
-    dir_col = np.stack([unit_c[..., 1], -unit_c[..., 0]], axis=-1)
-    u_col = (R / time_step - w_c_len)[..., None] * unit_c
-
-    direction = np.where(cutoff[..., None], dir_cut, dir_leg)
-    u = np.where(cutoff[..., None], u_cut, u_leg)
-    direction = np.where(colliding[..., None], dir_col, direction)
-    u = np.where(colliding[..., None], u_col, u)
-    return u, direction
+    # Contiguous, writeable copies of one shape (what the kernel takes).
+    P, V, R = np.empty(shape), np.empty(shape), np.empty(shape[:-1])
+    P[...], V[...], R[...] = rel_position, rel_velocity, combined_radius
+    P, V, R = P.reshape(-1, 2), V.reshape(-1, 2), R.reshape(-1)
+    u, direction = np.empty_like(P), np.empty_like(P)
+    # Compiled: one pass over the pairs (humans/kernels.py).
+    agent_lines(P, V, R, float(tau), float(time_step), u, direction)
+    return u.reshape(shape), direction.reshape(shape)
 
 
 def orca_half_planes(

@@ -29,6 +29,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize, nnls
 
+from sm2ith_drake.humans.kernels import relaxed_orca_newton
+
 _ACTIVE_TOL = 1e-7
 # Relative resolution of f: a smaller Armijo decrease is roundoff.
 _ROUNDOFF = 1e-14
@@ -274,8 +276,8 @@ def relaxed_orca_actions(
     """Solves B independent relaxed-ORCA QPs (one per human) at once.
 
     The same damped Newton as relaxed_orca_action on the unconstrained reduced
-    problem f(a), vectorized over the rows (2×2 solves in closed form, batched
-    Armijo backtracking). The rare rows whose unconstrained minimizer leaves the
+    problem f(a), compiled and run row by row (2×2 solves in closed form,
+    Armijo backtracking; humans/kernels.py). The rare rows whose unconstrained minimizer leaves the
     speed disc or a static half-plane are handed to relaxed_orca_action, so
     they are exact too. Elsewhere λ_s = λ_o = 0 and the stationarity residual
     is ‖∇f(a)‖.
@@ -304,9 +306,6 @@ def relaxed_orca_actions(
         no = np.asarray(static_normals, dtype=float).reshape(B, S, 2)
     Ma, Mv = (float(w) for w in slack_weights)
     r_acc_sq = (time_step * max_accel) ** 2
-    # Σ over active lines of n_i n_iᵀ as one matmul: columns [n_x², n_x n_y, n_y²].
-    nn = np.stack([n[..., 0] ** 2, n[..., 0] * n[..., 1], n[..., 1] ** 2], axis=-1)
-
     def slacks(a):
         e = a - v_t
         za = np.maximum(0.0, np.einsum("bk,bk->b", e, e) - r_acc_sq)
@@ -328,41 +327,17 @@ def relaxed_orca_actions(
             - 2 * Mv * np.einsum("ba,bak->bk", zv, n)
         )
 
-    # Damped Newton on f (see _Reduced), all rows at once; a converged row's
-    # step is zeroed so it stays put while the others finish.
-    a = v_pref.copy()
-    done = np.zeros(B, dtype=bool)
-    for _ in range(50):
-        e, za, zv = slacks(a)
-        f = cost(a, za, zv)
-        g = gradient(a, e, za, zv)
-        hs = 2 * Mv * np.einsum("ba,bak->bk", (zv > 0).astype(float), nn)
-        ca = 8 * Ma * (za > 0)
-        h11 = 2 + hs[:, 0] + 4 * Ma * za + ca * e[:, 0] ** 2
-        h12 = hs[:, 1] + ca * e[:, 0] * e[:, 1]
-        h22 = 2 + hs[:, 2] + 4 * Ma * za + ca * e[:, 1] ** 2
-        scale = np.where(done, 0.0, -1.0 / (h11 * h22 - h12**2))
-        step = np.column_stack(
-            [h22 * g[:, 0] - h12 * g[:, 1], h11 * g[:, 1] - h12 * g[:, 0]]
-        )
-        step *= scale[:, None]
-        # Armijo backtracking (a converged row's zero step always passes).
-        t = np.ones(B)
-        slope = 1e-4 * np.einsum("bk,bk->b", g, step)
-        allowance = _ROUNDOFF * (1 + np.abs(f))
-        while True:
-            trial = a + t[:, None] * step
-            _, za_t, zv_t = slacks(trial)
-            fail = cost(trial, za_t, zv_t) > f + t * slope + allowance
-            fail &= t > 1e-8
-            if not fail.any():
-                break
-            t[fail] *= 0.5
-        step *= t[:, None]
-        a = a + step
-        done |= np.einsum("bk,bk->b", step, step) < 1e-26
-        if done.all():
-            break
+    # Damped Newton on f (see _Reduced), row by row, compiled
+    # (humans/kernels.py).
+    a = relaxed_orca_newton(
+        np.ascontiguousarray(v_pref),
+        np.ascontiguousarray(v_t),
+        np.ascontiguousarray(n),
+        np.ascontiguousarray(rho),
+        r_acc_sq,
+        Ma,
+        Mv,
+    )
     e, za, zv = slacks(a)
     result = RelaxedOrcaBatch(
         velocity=a,

@@ -12,6 +12,7 @@ too), and one line per static wall segment.
 import numpy as np
 
 from sm2ith_drake.control.profiling import PROFILER
+from sm2ith_drake.humans import kernels
 from sm2ith_drake.humans.half_planes import obstacle_half_planes, orca_agent_half_planes
 from sm2ith_drake.humans.relaxed_orca import relaxed_orca_actions
 from sm2ith_drake.humans.robot_view import NearestBodies, RobotView
@@ -32,6 +33,8 @@ class OrcaModel:
     ):
         """``config`` is a PredictionConfig; ``obstacles`` (S, 2, 2) wall
         segments; ``human_radius`` the radius people are modelled with."""
+        # The compiled ORCA kernels, loaded before the first control step.
+        kernels.Compile()
         self.config = config
         self.N = horizon
         self.dt = time_step
