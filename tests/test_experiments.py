@@ -11,22 +11,42 @@ import pytest
 
 from sm2ith_drake.experiments.campaign import (
     COLUMNS,
-    PlanRuns,
     ReadRows,
     RunCampaign,
     RunOne,
 )
-from sm2ith_drake.experiments.studies import STUDIES
+from sm2ith_drake.experiments.findings import FindingRows
+from sm2ith_drake.experiments.people import (
+    ApplyPeopleModel,
+    DoorwayPeople,
+    MergeYaml,
+)
+from sm2ith_drake.experiments.runs import LoadRunScenario, PlanRuns
+from sm2ith_drake.experiments.statistics import (
+    DOES_NOT_HOLD,
+    HOLDS,
+    NOT_DISTINGUISHABLE,
+    Estimate,
+    MedianCI,
+    PairedDifference,
+    Verdict,
+)
+from sm2ith_drake.experiments.studies import DOORWAY_PEOPLE, STUDIES
 from sm2ith_drake.robots import MobileManipulator
 from sm2ith_drake.run.metrics import (
+    CAMPAIGN_METRICS,
     INTIMATE_DISTANCE,
     CampaignRow,
+    FreezingTime,
     HumanMetrics,
+    ObstacleClearance,
     PathDeviation,
     PolylineDistances,
+    ProgressShare,
     Retreat,
+    TimeToGoal,
 )
-from sm2ith_drake.scenario import PhaseConfig, Scenario, TaskConfig
+from sm2ith_drake.scenario import HumanConfig, PhaseConfig, Scenario, TaskConfig
 from sm2ith_drake.systems.logger import RunLog
 
 
@@ -134,12 +154,69 @@ def test_campaign_row_task_and_sequence_metrics(stretch):
     assert timeout["success"] is False and math.isnan(timeout["navigation_time"])
 
 
-def test_studies_follow_the_paper():
-    pp = PlanRuns(STUDIES["pick_and_place"])
-    assert len(pp) == 80  # 2 robots × 2 crowds × (10 + 5 + 5)
+def test_studies_pair_seeds_and_span_the_axes():
+    one = dict(variants=["safe"], people=["orca"])
+    pp = PlanRuns(STUDIES["pick_and_place"], **one)
+    assert len(pp) == 120  # 2 robots × 2 crowds × 3 methods × 10 seeds
     assert {r.method for r in pp} == {"SM2ITH", "CVMM", "React"}
-    assert len(PlanRuns(STUDIES["banner_cup"])) == 60
-    assert len(PlanRuns(STUDIES["pick_and_place"], runs=1, only="stretch3_2h")) == 3
+    seeds = {
+        m: {(r.scenario, r.seed) for r in pp if r.method == m}
+        for m in ("SM2ITH", "CVMM", "React")
+    }
+    assert seeds["SM2ITH"] == seeds["CVMM"] == seeds["React"]
+    assert len(PlanRuns(STUDIES["banner_cup"], **one)) == 120
+    assert len(PlanRuns(STUDIES["pick_and_place"], runs=1, only="stretch3_2h")) == (
+        3
+        * len(STUDIES["pick_and_place"].variants)
+        * len(STUDIES["pick_and_place"].people)
+    )
+    # Variants and people models multiply the runs and name them.
+    both = PlanRuns(
+        STUDIES["adversarial"],
+        runs=2,
+        variants=["paper", "safe"],
+        people=["orca", "social_force"],
+    )
+    assert len(both) == 2 * 2 * 2 * 2
+    assert len({r.run_id for r in both}) == len(both)
+    assert "headon_stretch3/paper/social_force/CVMM/seed1" in {r.run_id for r in both}
+    paper = next(r for r in both if r.variant == "paper" and r.method == "CVMM")
+    assert (
+        paper.scenario_text == "{prediction: {predictor: cvmm}, safety: {mode: paper}}"
+    )
+    scenario = LoadRunScenario(paper)
+    assert scenario.safety.mode == "paper"
+    assert scenario.prediction.predictor == "cvmm"
+    # The doorway: one scenario per robot, a cell per crowd, ≥ 10 seeds.
+    dw = PlanRuns(STUDIES["doorway"], **one)
+    assert len(dw) == 2 * 4 * 3 * 10
+    assert {r.humans for r in dw} == {1, 2, 3, 5}
+    with pytest.raises(ValueError, match="variant"):
+        PlanRuns(STUDIES["doorway"], variants=["fast"])
+    with pytest.raises(ValueError, match="people"):
+        PlanRuns(STUDIES["doorway"], people=["robots"])
+
+
+def test_people_models_leave_scripted_and_adversarial_people():
+    scenario = Scenario(
+        humans=[
+            HumanConfig(behavior="orca"),
+            HumanConfig(behavior="scripted"),
+            HumanConfig(behavior="adversarial"),
+            HumanConfig(behavior="social_force"),
+        ]
+    )
+    changed = ApplyPeopleModel(scenario, "instructed")
+    assert [h.behavior for h in changed.humans] == [
+        "instructed",
+        "scripted",
+        "adversarial",
+        "instructed",
+    ]
+    assert ApplyPeopleModel(scenario, "scenario") is scenario
+    assert MergeYaml("{a: {b: 1}}", "", "{a: {c: 2}, d: [1]}") == (
+        "{a: {b: 1, c: 2}, d: [1]}"
+    )
 
 
 def _cli(*args, cwd):
@@ -156,6 +233,7 @@ def test_mini_campaign_end_to_end(tmp_path):
     out = tmp_path / "out"
     args = ["experiment", "adversarial", "--runs", "1", "--jobs", "2"]
     args += ["--duration", "3", "--out", str(out)]
+    args += ["--variant", "safe", "--people", "orca"]
     first = _cli(*args, cwd=tmp_path)
     assert first.returncode == 0, first.stderr[-2000:]
     with open(out / "adversarial.csv", newline="") as f:
@@ -166,11 +244,12 @@ def test_mini_campaign_end_to_end(tmp_path):
         for key in ("run_id", "scenario", "method", "seed", "min_human_gap"):
             assert row[key] not in ("", "nan"), key
         assert float(row["simulated_time"]) == pytest.approx(3.0, abs=0.06)
-    png = (out / "adversarial.png").read_bytes()
+    png_path = out / "adversarial_safe_orca.png"
+    png = png_path.read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
     import matplotlib.image
 
-    image = matplotlib.image.imread(out / "adversarial.png")
+    image = matplotlib.image.imread(png_path)
     assert image.shape[0] > 200 and image.shape[1] > 400
     assert np.ptp(image[..., :3]) > 0.5  # not a blank canvas
     report = (out / "adversarial_report.md").read_text()
@@ -189,13 +268,15 @@ def test_mini_campaign_end_to_end(tmp_path):
         "replay", str(out / "adversarial.csv"), "1", "--no-meshcat", cwd=tmp_path
     )
     assert replay.returncode == 0, replay.stderr[-2000:]
-    assert "replaying adversarial_stretch3/" in replay.stdout
+    assert "replaying headon_stretch3/safe/orca/" in replay.stdout
     bad = _cli("replay", str(out / "adversarial.csv"), "7", cwd=tmp_path)
     assert bad.returncode == 2 and "ROW must be" in bad.stderr
 
 
 def test_same_seed_reproduces_the_metrics(tmp_path):
-    spec = PlanRuns(STUDIES["pick_and_place"], runs=2, only="ridgeback_ur10_1h")[1]
+    spec = PlanRuns(
+        STUDIES["pick_and_place"], runs=2, only="ridgeback_ur10_1h", people=["orca"]
+    )[1]
     spec = dataclasses.replace(spec, duration=4.0)
     assert spec.seed == 1
     a, b = RunOne(spec, str(tmp_path)), RunOne(spec, str(tmp_path))
@@ -222,10 +303,10 @@ def test_ray_executor(tmp_path):
         pytest.skip(f"a local Ray instance cannot start here: {e}")
     try:
         result = RunCampaign(
-            STUDIES["adversarial"],
+            STUDIES["pursuer"],
             tmp_path,
             runs=1,
-            only="adversarial",
+            variants=["safe"],
             duration=2.0,
             executor="ray",
             progress=False,
@@ -237,7 +318,263 @@ def test_ray_executor(tmp_path):
 
 
 def test_a_foreign_csv_is_refused(tmp_path):
-    (tmp_path / "adversarial.csv").write_text("run_id,something\nx,1\n")
-    result = _cli("experiment", "adversarial", "--out", str(tmp_path), cwd=tmp_path)
+    (tmp_path / "pursuer.csv").write_text("run_id,something\nx,1\n")
+    result = _cli("experiment", "pursuer", "--out", str(tmp_path), cwd=tmp_path)
     assert result.returncode == 2
     assert "other columns" in result.stderr and "Traceback" not in result.stderr
+
+
+# --- Issue 12: the paper's metrics, the doorway's people, paired statistics.
+
+
+def test_freezing_time_against_hand_values():
+    t = np.arange(0.0, 5.01, 0.1)
+    # Stands still for 3 s, then drives off at 1 m/s: frozen from 2 s (when
+    # the position 2 s earlier is the same) until it moves: 1 s.
+    x = np.where(t <= 3.0, 0.0, 1.0 * (t - 3.0))
+    xy = np.column_stack([x, np.zeros_like(x)])
+    away = np.zeros(t.size, dtype=bool)
+    assert FreezingTime(t, xy, away) == pytest.approx(1.0)
+    # Driving off at 0.2 m/s it is still within 5 cm of its old place at
+    # 3.2 s (4 cm): 1.2 s.
+    slow = np.column_stack([np.where(t <= 3.0, 0.0, 0.2 * (t - 3.0)), 0 * t])
+    assert FreezingTime(t, slow, away) == pytest.approx(1.2)
+    # At its goal the same standstill is not freezing.
+    assert FreezingTime(t, xy, np.ones(t.size, dtype=bool)) == 0.0
+    # Creeping at 2 cm/s moves 4 cm in 2 s: still frozen, for the whole run
+    # after the first 2 s.
+    creep = np.column_stack([0.02 * t, np.zeros_like(t)])
+    assert FreezingTime(t, creep, away) == pytest.approx(3.0)
+    # 3 cm/s moves 6 cm in 2 s: never frozen.
+    walk = np.column_stack([0.03 * t, np.zeros_like(t)])
+    assert FreezingTime(t, walk, away) == 0.0
+
+
+def test_time_to_goal_and_progress_share_against_hand_values():
+    t = np.arange(0.0, 2.01, 0.5)
+    assert TimeToGoal(t, [3.0, 1.0, 0.2, 0.1, 0.0]) == 1.0
+    assert math.isnan(TimeToGoal(t, [3.0, 2.0, 1.0, 0.9, 0.8]))
+    # The base at x = 0, 0.1, 0.1, 0.0, 0.1 (toward, stop, back, toward) with
+    # the goal at x = 3; a person within 2 m at the first four samples.
+    t = np.arange(5) * 0.5
+    base = np.column_stack([[0.0, 0.1, 0.1, 0.0, 0.1], np.zeros(5)])
+    goal = np.tile([3.0, 0.0], (5, 1))
+    people = np.array([[[1.5, 0.0]]] * 4 + [[[9.0, 0.0]]])
+    # Steps 0..3 count (step 4 has no next sample): toward, stop, back,
+    # toward (step 3: from x = 0 to 0.1, 0.2 m/s).
+    assert ProgressShare(t, base, goal, people) == pytest.approx(2 / 4)
+    # Nobody near: undefined.
+    assert math.isnan(ProgressShare(t, base, goal, people + 10.0))
+
+
+def test_intimate_space_time_from_the_base(stretch):
+    # Stretch 3 at the origin, its arm tucked; one person stands 0.45 m +
+    # base radius − 1 cm from the base centre for samples 2..4, far away
+    # otherwise: 3 samples of 0.1 s inside the base's circle.
+    radius = stretch.model.base_radius
+    x = np.zeros(stretch.num_positions + stretch.num_velocities)
+    x[3 : stretch.num_positions] = [0.2, 0.0, 0.0, 0.0]
+    log = RunLog()
+    for i in range(8):
+        log.times.append(0.1 * i)
+        log.states.append(x)
+        d = INTIMATE_DISTANCE + radius - 0.01 if 2 <= i <= 4 else 5.0
+        log.human_positions.append(np.array([[-d, 0.0]]))
+    m = HumanMetrics(log, stretch, [0.3])
+    assert m["intimate_space_time_base"] == pytest.approx(0.3)
+    # Behind the robot (−x) the base is also the nearest body: the any-body
+    # time is at least the base's.
+    assert m["intimate_space_time"] >= m["intimate_space_time_base"] - 1e-12
+    # 2 cm farther out: nobody in the base's circle.
+    log.human_positions = [p - [[0.02, 0.0]] for p in log.human_positions]
+    assert HumanMetrics(log, stretch, [0.3])["intimate_space_time_base"] == 0.0
+
+
+def test_obstacle_clearance_moves_with_the_wall(stretch):
+    x = np.zeros((1, stretch.num_positions + stretch.num_velocities))
+    x[0, 3 : stretch.num_positions] = [0.5, 0.05, 0.0, 0.0]
+    near = ObstacleClearance(stretch, x, [[[1.5, -3.0], [1.5, 3.0]]])
+    far = ObstacleClearance(stretch, x, [[[2.0, -3.0], [2.0, 3.0]]])
+    assert far - near == pytest.approx(0.5)
+    # A wall through the base: negative (inside the base capsule).
+    assert ObstacleClearance(stretch, x, [[[0.0, -1.0], [0.0, 1.0]]]) < 0.0
+    assert math.isnan(ObstacleClearance(stretch, x, []))
+
+
+def test_campaign_row_of_a_robot_standing_in_a_doorway(stretch):
+    """A log that stands still for 3 s, 1.5 m from its goal, with a person
+    1 m away: frozen for 1 s, no progress, no time to goal, failure."""
+    scenario = Scenario(
+        tasks=[TaskConfig(kind="base_position", target=[1.5, 0.0])],
+        sequence=[PhaseConfig(name="go", done_when=["base_position"])],
+    )
+    log = RunLog()
+    x = np.zeros(stretch.num_positions + stretch.num_velocities)
+    for i in range(31):
+        log.times.append(0.1 * i)
+        log.states.append(x)
+        log.phases.append(0)
+        log.human_positions.append(np.array([[0.0, 1.0]]))
+        log.task_errors.setdefault("base_position", []).append(np.array([-1.5, 0.0]))
+    row = CampaignRow(log, stretch, scenario, {"phases_completed": 0})
+    assert row["freezing_time"] == pytest.approx(1.0)
+    assert row["progress_share"] == 0.0
+    assert row["success"] is False
+    assert math.isnan(row["time_to_goal"])
+    assert math.isnan(row["min_obstacle_clearance"])  # no walls
+
+
+def _CrossesDoor(h, door):
+    (x0, y0), (x1, y1) = h.start, h.waypoints[-1]
+    x_at_wall = x0 + (x1 - x0) * y0 / (y0 - y1)
+    return y0 * y1 < 0 and abs(x_at_wall) <= door - h.radius
+
+
+@pytest.mark.parametrize("robot", ["stretch3", "ridgeback_ur10"])
+def test_doorway_people(robot):
+    sampler: DoorwayPeople = DOORWAY_PEOPLE[robot]
+    for seed in range(20):
+        crowd = sampler.Sample(5, seed)
+        assert crowd == sampler.Sample(5, seed)  # deterministic
+        assert crowd[:2] == sampler.Sample(2, seed)  # nested crowds
+        sides = {np.sign(h.start[1]) for h in crowd}
+        assert sides == {-1.0, 1.0}  # starts on both sides
+        for h in crowd:
+            assert 0.5 <= h.speed <= 1.5
+            assert _CrossesDoor(h, sampler.door_half_width)
+            assert abs(h.start[0]) <= sampler.corridor_half_width - h.radius
+            assert abs(h.waypoints[-1][0]) <= sampler.corridor_half_width - h.radius
+            gap = np.hypot(*(np.subtract(h.start, sampler.robot_start)))
+            assert gap > sampler.robot_radius + h.radius
+        starts = np.array([h.start for h in crowd])
+        d = np.linalg.norm(starts[:, None] - starts[None], axis=-1)
+        assert np.all(d[np.triu_indices(5, 1)] >= 2 * 0.3)
+    assert sampler.Sample(3, 0) != sampler.Sample(3, 1)
+    # Over many seeds the first person starts on either side.
+    firsts = {np.sign(sampler.Sample(1, s)[0].start[1]) for s in range(20)}
+    assert firsts == {-1.0, 1.0}
+
+
+def test_paired_difference_cancels_what_the_pair_shares():
+    rng = np.random.default_rng(0)
+    shared = rng.normal(0.0, 5.0, 12)  # the seed's people: large spread
+    a = shared + 1.0 + rng.normal(0.0, 0.05, 12)
+    b = shared + rng.normal(0.0, 0.05, 12)
+    d = PairedDifference(a, b)
+    assert d.n == 12 and d.low < 1.0 < d.high
+    assert d.high - d.low < 0.2  # the shared spread cancels
+    assert Verdict([d], lower_is_better=False) == HOLDS
+    assert Verdict([d], lower_is_better=True) == DOES_NOT_HOLD
+    # Swapped: mirrored.
+    e = PairedDifference(b, a)
+    assert e.value == pytest.approx(-d.value)
+    # The medians' CIs cannot tell the two apart: they overlap widely.
+    ma, mb = MedianCI(a), MedianCI(b)
+    assert ma.low < mb.high and mb.low < ma.high
+    # A pair with a missing value is dropped; fewer than 2 pairs, no CI.
+    assert PairedDifference([1.0, np.nan, 3.0], [0.0, 1.0, 1.0]).n == 2
+    assert math.isnan(PairedDifference([1.0], [0.0]).low)
+    with pytest.raises(ValueError):
+        PairedDifference([1.0, 2.0], [1.0])
+
+
+def test_verdicts():
+    above = Estimate(1.0, 0.5, 1.5, 10)
+    below = Estimate(-1.0, -1.5, -0.5, 10)
+    spans = Estimate(0.1, -0.5, 0.7, 10)
+    assert Verdict([above, above], lower_is_better=False) == HOLDS
+    assert Verdict([above, spans], lower_is_better=False) == NOT_DISTINGUISHABLE
+    assert Verdict([above, below], lower_is_better=False) == DOES_NOT_HOLD
+    assert Verdict([below], lower_is_better=True) == HOLDS
+    assert Verdict([Estimate(1.0, math.nan, math.nan, 1)], lower_is_better=True) == (
+        NOT_DISTINGUISHABLE
+    )
+
+
+def test_mini_doorway_campaign(tmp_path):
+    """Two seeds, one person, both robots, a short cap: every method ran
+    the same seeds (the same people) and every metric is in every row."""
+    result = RunCampaign(
+        STUDIES["doorway"],
+        tmp_path,
+        jobs=1,
+        runs=2,
+        only="_1h",
+        duration=2.0,
+        variants=["safe"],
+        people=["orca"],
+        progress=False,
+    )
+    rows = result.rows
+    assert len(rows) == 2 * 3 * 2  # robots × methods × seeds
+    with open(result.csv_path, newline="") as f:
+        header = next(csv.reader(f))
+    assert header == COLUMNS and set(CAMPAIGN_METRICS) <= set(header)
+    for row in rows:
+        assert row["status"] == "ok", row["error"]
+        assert (row["variant"], row["people"]) == ("safe", "orca")
+        for key in CAMPAIGN_METRICS:
+            assert key in row, key
+        for key in ("min_human_gap", "freezing_time", "min_obstacle_clearance"):
+            assert not math.isnan(row[key]), key
+        assert row["intimate_space_time_base"] >= 0.0
+        assert row["success"] is False  # 2 s is too short to pass the door
+    for robot in ("stretch3", "ridgeback_ur10"):
+        by_method = {}
+        for row in rows:
+            if row["robot"] == robot:
+                by_method.setdefault(row["method"], set()).add(row["seed"])
+        assert by_method == {m: {0, 1} for m in ("SM2ITH", "CVMM", "React")}
+    # Paired seeds meet the same person: the same draw for every method.
+    people = {
+        (s.method, s.seed): LoadRunScenario(s).humans
+        for s in PlanRuns(
+            STUDIES["doorway"], runs=2, only="stretch3_1h", people=["orca"]
+        )
+    }
+    assert people[("SM2ITH", 1)] == people[("CVMM", 1)] == people[("React", 1)]
+    assert people[("SM2ITH", 0)] != people[("SM2ITH", 1)]
+    report = result.report.read_text()
+    assert "Variant `safe`, people `orca`" in report and "CVMM − SM2ITH" in report
+    assert (tmp_path / "doorway_safe_orca.png").exists()
+    assert (tmp_path / "findings.md").exists()
+
+
+def test_findings_table_of_synthetic_rows():
+    """React's intimate-space time 1 s above the others' on every seed of
+    the Ridgeback: finding (c) holds; CVMM's deviation level with SM²ITH's:
+    (b) is not distinguishable or does not hold."""
+    rows = []
+    rng = np.random.default_rng(1)
+    for h in (1, 2):
+        for seed in range(10):
+            base = rng.uniform(0.0, 2.0)
+            dev = rng.uniform(0.05, 0.2)
+            for method, extra in (("SM2ITH", 0.0), ("CVMM", 0.0), ("React", 1.0)):
+                rows.append(
+                    {
+                        "status": "ok",
+                        "family": "ridgeback_ur10",
+                        "scenario": f"pick_and_place_ridgeback_ur10_{h}h",
+                        "humans": h,
+                        "seed": seed,
+                        "method": method,
+                        "variant": "safe",
+                        "people": "orca",
+                        "intimate_space_time_base": base + extra,
+                        "base_path_deviation": dev + rng.normal(0, 0.01),
+                        "navigation_time": 20.0,
+                    }
+                )
+    entries = FindingRows(STUDIES["pick_and_place"], rows)
+    c = next(e for e in entries if e["key"] == "(c)")
+    assert c["verdict"] == HOLDS
+    assert all(d.n == 20 for _, d in c["comparisons"])
+    b = next(
+        e
+        for e in entries
+        if e["key"] == "(b)"
+        and e["robot"] == "ridgeback_ur10"
+        and e["metric"] == "base_path_deviation"
+    )
+    assert b["verdict"] in (NOT_DISTINGUISHABLE, DOES_NOT_HOLD)

@@ -2,12 +2,24 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
+
+import yaml
 
 from sm2ith_drake.cli.run import RunCommand
 from sm2ith_drake.errors import UserError
 from sm2ith_drake.experiments.campaign import ReadRows, RunCampaign
+from sm2ith_drake.experiments.findings import WriteFindings
+from sm2ith_drake.experiments.people import (
+    AS_SCENARIO,
+    PEOPLE_MODELS,
+    VARIANTS,
+    MergeYaml,
+)
+from sm2ith_drake.experiments.runs import LoadRunScenario, SpecFromRow
 from sm2ith_drake.experiments.studies import STUDIES
+from sm2ith_drake.scenario import ScenarioError
 
 
 def _UserError(message):
@@ -27,6 +39,8 @@ def _Experiment(args) -> int:
         raise _UserError("--duration must be ≥ 0")
     if args.address and args.executor != "ray":
         raise _UserError("--address is for --executor ray")
+    variants = _List(args.variant, VARIANTS, "--variant")
+    people = _List(args.people, PEOPLE_MODELS + (AS_SCENARIO,), "--people")
     try:
         result = RunCampaign(
             STUDIES[args.study],
@@ -35,6 +49,8 @@ def _Experiment(args) -> int:
             runs=args.runs,
             only=args.only,
             duration=args.duration,
+            variants=variants,
+            people=people,
             executor=args.executor,
             address=args.address,
         )
@@ -52,6 +68,45 @@ def _Experiment(args) -> int:
         print(f"plot:   {plot}")
     print(f"report: {result.report}")
     return 1 if failed else 0
+
+
+def _List(text, valid, option):
+    """A comma-separated option as a tuple (None: the study's default)."""
+    if text is None:
+        return None
+    values = tuple(v.strip() for v in text.split(",") if v.strip())
+    bad = [v for v in values if v not in valid]
+    if bad or not values:
+        raise _UserError(f"{option} takes a comma list of: " + ", ".join(valid))
+    return values
+
+
+def _RunText(row) -> str:
+    """A row's full override: its method's and variant's YAML, and the
+    people it met (the seed's draw in its people model) with the seed, so
+    that ``sm2ith run`` simulates exactly that run."""
+    study = STUDIES.get(row.get("study", ""))
+    if study is None:
+        raise _UserError(f"the row's study {row.get('study')!r} is unknown")
+    try:
+        scenario = LoadRunScenario(SpecFromRow(study, row))
+    except (ValueError, ScenarioError) as e:
+        raise _UserError(str(e)) from e
+    people = {
+        "humans": [dataclasses.asdict(h) for h in scenario.humans],
+        "random_seed": scenario.random_seed,
+        "prediction": {"max_humans": scenario.prediction.max_humans},
+    }
+    return MergeYaml(row["scenario_text"], yaml.safe_dump(people))
+
+
+def _Findings(args) -> int:
+    out = Path(args.out)
+    rows = {name: ReadRows(out / f"{name}.csv") for name in STUDIES}
+    if not any(rows.values()):
+        raise _UserError(f"no study CSV in {out}")
+    print(f"findings: {WriteFindings(STUDIES, rows, out)}")
+    return 0
 
 
 def _Replay(args) -> int:
@@ -73,8 +128,8 @@ def _Replay(args) -> int:
     print(f"replaying {row['run_id']} (seed {row['seed']})")
     args.file = row["scenario_file"]
     args.scenario = row["scenario"]
-    args.scenario_text = row["scenario_text"]
-    args.seed = int(row["seed"])
+    args.scenario_text = _RunText(row)
+    args.seed = None  # the people are in the text
     duration = float(row.get("duration") or 0.0)
     args.duration = duration if duration > 0 else None
     args.graphviz = None
@@ -88,18 +143,37 @@ def AddExperimentCommands(sub) -> None:
     exp = sub.add_parser(
         "experiment",
         help="run one of the paper's studies as a campaign",
-        description="Runs a study (cells × methods × seeds) in parallel, "
-        "writes OUT/STUDY.csv (one row per run), OUT/STUDY.png (box plots) "
-        "and OUT/STUDY_report.md. Runs already in the CSV are skipped, so an "
-        "interrupted campaign resumes where it stopped.",
+        description="Runs a study (cells × variants × people models × "
+        "methods × seeds, every method on the same seeds) in parallel, "
+        "writes OUT/STUDY.csv (one row per run), OUT/STUDY_VARIANT_PEOPLE.png "
+        "(box plots with the medians' 95 %% CIs), OUT/STUDY_report.md "
+        "(medians and paired differences with bootstrap CIs) and "
+        "OUT/findings.md (what holds of the paper's findings). Runs already "
+        "in the CSV are skipped, so an interrupted campaign resumes where it "
+        "stopped.",
     )
     exp.add_argument("study", help="one of: " + ", ".join(STUDIES))
     exp.add_argument(
         "--runs",
         type=int,
         default=None,
-        help="seeds per method and scenario (default: the study's, e.g. "
-        "10 for SM2ITH and 5 for the baselines)",
+        help="seeds per method and cell, the same for every method "
+        "(default: the study's, 10)",
+    )
+    exp.add_argument(
+        "--variant",
+        default=None,
+        help="safety variants, a comma list of: " + ", ".join(VARIANTS) + " "
+        "(paper: the paper's DT-CBF only; safe: the shipped safety "
+        "mechanism; default: the study's)",
+    )
+    exp.add_argument(
+        "--people",
+        default=None,
+        help="people models, a comma list of: "
+        + ", ".join(PEOPLE_MODELS + (AS_SCENARIO,))
+        + " (the behaviour of every person who walks to goals; scripted "
+        "and adversarial people stay; default: the study's)",
     )
     exp.add_argument("--jobs", type=int, default=2, help="parallel processes")
     exp.add_argument("--out", default="out/experiments", help="output directory")
@@ -113,7 +187,9 @@ def AddExperimentCommands(sub) -> None:
         "--address", default=None, help="Ray cluster address (default: local Ray)"
     )
     exp.add_argument(
-        "--only", default=None, help="only scenarios whose name contains this"
+        "--only",
+        default=None,
+        help="only cells whose name contains this (e.g. doorway_stretch3_5h)",
     )
     exp.add_argument(
         "--duration",
@@ -123,6 +199,15 @@ def AddExperimentCommands(sub) -> None:
         "run that did not finish counts as a timeout)",
     )
     exp.set_defaults(func=_Experiment)
+
+    findings = sub.add_parser(
+        "findings",
+        help="rewrite OUT/findings.md from the study CSVs in OUT",
+        description="The 'what holds' table of the paper's findings (a)-(d) "
+        "from every study CSV in OUT (written after every campaign too).",
+    )
+    findings.add_argument("--out", default="out/experiments", help="directory")
+    findings.set_defaults(func=_Findings)
 
     replay = sub.add_parser(
         "replay", help="rerun one campaign run with Meshcat and save its replay"

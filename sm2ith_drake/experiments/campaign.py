@@ -1,16 +1,20 @@
-"""Campaigns: a study's runs (cells × methods × seeds), in parallel, into a
-tidy CSV, with plots and a report (Section V).
+"""Campaigns: a study's runs (cells × variants × people models × methods ×
+seeds), in parallel, into a tidy CSV, with plots and a report (Section V).
 
 A run is fully described by its RunSpec (scenario file and name, the YAML
-overrides of its method, the seed), so any CSV row can be rerun exactly
-(``sm2ith replay``). Runs append their row to the CSV as they finish; a
-campaign started again skips the runs already in the CSV (resume).
+overrides of its method and variant, the people model, the seed), so any
+CSV row can be rerun exactly (``sm2ith replay``). Runs append their row to
+the CSV as they finish; a campaign started again skips the runs already in
+the CSV (resume).
 """
 
 from __future__ import annotations
 
 import csv
 import dataclasses
+import datetime
+import hashlib
+import json
 import math
 import multiprocessing
 import os
@@ -23,11 +27,22 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from sm2ith_drake.experiments.findings import WriteFindings
+from sm2ith_drake.experiments.people import (
+    AS_SCENARIO,
+    PEOPLE_MODELS,
+    VARIANTS,
+    ApplySeed,
+)
 from sm2ith_drake.experiments.report import MakePlots, WriteReport
-from sm2ith_drake.experiments.studies import Study
+from sm2ith_drake.experiments.runs import LoadRunScenario, PlanRuns, RunSpec
+from sm2ith_drake.experiments.studies import STUDIES, Study
 from sm2ith_drake.run.metrics import CAMPAIGN_METRICS, CampaignRow
 from sm2ith_drake.run.simulation import RunSimulation
 from sm2ith_drake.scenario_loader import LoadScenario
+
+# Re-exported: sm2ith run applies a replayed row's seed with ApplySeed.
+__all__ = ["ApplySeed", "LoadRunScenario", "PlanRuns", "RunSpec", "RunCampaign"]
 
 # Columns that identify a run, before the metrics.
 RUN_COLUMNS = [
@@ -37,6 +52,8 @@ RUN_COLUMNS = [
     "robot",
     "humans",
     "method",
+    "variant",
+    "people",
     "seed",
     "scenario_file",
     "scenario",
@@ -49,99 +66,17 @@ RUN_COLUMNS = [
 COLUMNS = RUN_COLUMNS + CAMPAIGN_METRICS
 
 
-@dataclasses.dataclass(frozen=True)
-class RunSpec:
-    study: str
-    family: str
-    robot: str
-    humans: int
-    method: str
-    seed: int
-    scenario_file: str
-    scenario: str
-    scenario_text: str
-    # Simulated-time cap (s); 0: the scenario's own duration.
-    duration: float = 0.0
-
-    @property
-    def run_id(self) -> str:
-        return f"{self.scenario}/{self.method}/seed{self.seed}"
-
-
-def PlanRuns(
-    study: Study,
-    *,
-    runs: int | None = None,
-    only: str | None = None,
-    duration: float = 0.0,
-) -> list[RunSpec]:
-    """The study's runs: every cell × method × seed.
-
-    Args:
-        runs: seeds per method and cell (default: each method's own count,
-            e.g. 10 for SM²ITH and 5 for the baselines in pick_and_place).
-        only: keep the cells whose scenario name contains this text.
-        duration: cap on each run's simulated time (0: the scenario's).
-    """
-    specs = []
-    for cell in study.cells:
-        if only and only not in cell.scenario:
-            continue
-        for method in study.methods:
-            for seed in range(method.seeds if runs is None else runs):
-                specs.append(
-                    RunSpec(
-                        study=study.name,
-                        family=cell.family,
-                        robot=cell.robot,
-                        humans=cell.humans,
-                        method=method.name,
-                        seed=seed,
-                        scenario_file=cell.scenario_file,
-                        scenario=cell.scenario,
-                        scenario_text=method.scenario_text,
-                        duration=duration,
-                    )
-                )
-    return specs
-
-
-def ApplySeed(scenario, seed: int):
-    """Varies the people reproducibly: each start moves up to 0.2 m, starts
-    up to 0.5 s later and walks at 90–110 % of its speed; the sensor noise is
-    seeded too. The same seed gives every method the same people."""
-    rng = np.random.default_rng(seed)
-    humans = []
-    for h in scenario.humans:
-        humans.append(
-            dataclasses.replace(
-                h,
-                start=list(np.asarray(h.start) + rng.uniform(-0.2, 0.2, 2)),
-                start_time=h.start_time + float(rng.uniform(0.0, 0.5)),
-                speed=h.speed * float(rng.uniform(0.9, 1.1)),
-            )
-        )
-    return dataclasses.replace(scenario, humans=humans, random_seed=int(seed))
-
-
-def LoadRunScenario(spec: RunSpec):
-    """The Scenario of a run: the cell's scenario, the method's overrides,
-    the seed's people."""
-
-    scenario = LoadScenario(
-        filename=spec.scenario_file,
-        scenario_name=spec.scenario,
-        scenario_text=spec.scenario_text,
-    )
-    return ApplySeed(scenario, spec.seed)
-
-
 def _ReferencePath(spec: RunSpec, cache_dir: Path):
-    """The base path of the same scenario and controller with no people (the
-    "optimal path"), computed once per scenario and method and cached."""
+    """The "optimal path": the base path of the same scenario and controller
+    (method and variant) with no people, computed once and cached. Without
+    people the predictors have nobody to predict, so SM²ITH, CVMM and React
+    share it."""
 
-    key = f"{spec.scenario}__{spec.method}__{spec.duration:g}".replace("/", "_")
-    path = cache_dir / f"{key}.npy"
+    text = (
+        f"{spec.scenario_file}|{spec.scenario}|{spec.scenario_text}|{spec.duration:g}"
+    )
+    digest = hashlib.sha1(text.encode()).hexdigest()[:10]
+    path = cache_dir / f"{spec.scenario}__{digest}.npy"
     if path.exists():
         return np.load(path)
     scenario = LoadScenario(
@@ -263,6 +198,8 @@ def RunCampaign(
     runs: int | None = None,
     only: str | None = None,
     duration: float = 0.0,
+    variants: tuple | list | None = None,
+    people: tuple | list | None = None,
     executor: str = "local",
     address: str | None = None,
     progress: bool = True,
@@ -274,7 +211,7 @@ def RunCampaign(
         study: the Study.
         out_dir: the output directory (created).
         jobs: parallel processes (local executor).
-        runs, only, duration: see PlanRuns.
+        runs, only, duration, variants, people: see PlanRuns.
         executor: "local" (a process pool on this machine) or "ray" (a Ray
             cluster; ``address`` as for ``ray.init``, default a local Ray).
         progress: print a progress bar to stderr.
@@ -283,7 +220,14 @@ def RunCampaign(
     out.mkdir(parents=True, exist_ok=True)
     csv_path = out / f"{study.name}.csv"
     cache = out / "reference_paths"
-    specs = PlanRuns(study, runs=runs, only=only, duration=duration)
+    specs = PlanRuns(
+        study,
+        runs=runs,
+        only=only,
+        duration=duration,
+        variants=variants,
+        people=people,
+    )
     if not specs:
         raise ValueError(f"no runs in study '{study.name}' match --only {only!r}")
     _CsvColumns(csv_path)  # a foreign CSV is refused before any run
@@ -311,12 +255,55 @@ def RunCampaign(
             )
             bar.update()
     wall = time.perf_counter() - start
-    wanted = {s.run_id for s in specs}
+    total = _RecordWallTime(out / f"{study.name}_timing.json", wall, len(todo), jobs)
+    # The report covers these cells and seeds in every variant and people
+    # model the CSV has (a study may be run one axis value at a time).
+    wanted = {
+        s.run_id
+        for s in PlanRuns(
+            study,
+            runs=runs,
+            only=only,
+            duration=duration,
+            variants=VARIANTS,
+            people=PEOPLE_MODELS + (AS_SCENARIO,),
+        )
+    }
     rows = [r for r in ReadRows(csv_path) if r["run_id"] in wanted]
 
     plots = MakePlots(study, rows, out)
-    report = WriteReport(study, rows, out, plots, wall_time_s=wall, ran=len(todo))
+    report = WriteReport(
+        study,
+        rows,
+        out,
+        plots,
+        wall_time_s=wall,
+        ran=len(todo),
+        study_wall_time_s=total,
+    )
+    WriteFindings(
+        STUDIES,
+        {name: ReadRows(out / f"{name}.csv") for name in STUDIES},
+        out,
+    )
     return CampaignResult(csv_path, rows, len(todo), skipped, plots, report, wall)
+
+
+def _RecordWallTime(path: Path, wall: float, ran: int, jobs: int) -> float:
+    """Appends this invocation to the study's timing file; returns the
+    study's wall time over every invocation that ran something."""
+    record = json.loads(path.read_text()) if path.exists() else []
+    if ran:
+        record.append(
+            {
+                "date": datetime.datetime.now().isoformat(timespec="seconds"),
+                "runs": ran,
+                "jobs": jobs,
+                "wall_time_s": round(wall, 1),
+            }
+        )
+        path.write_text(json.dumps(record, indent=1) + "\n")
+    return float(sum(r["wall_time_s"] for r in record))
 
 
 def _Execute(specs, cache, jobs, executor, address):

@@ -1,4 +1,6 @@
-"""A campaign's box-and-whisker plots and Markdown report."""
+"""A campaign's box-and-whisker plots and Markdown report: per safety
+variant and people model, the paper's panels with the medians' 95 % CIs,
+paired differences between methods, and the "what holds" table."""
 
 from __future__ import annotations
 
@@ -10,33 +12,40 @@ import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
 
+from sm2ith_drake.experiments.findings import (
+    Axes,
+    Difference,
+    FindingRows,
+    Median,
+    Select,
+    Value,
+    WhatHoldsTable,
+)
+from sm2ith_drake.experiments.statistics import MedianCI
+
 # One colour per method, in the study's order (colour-blind safe).
 _COLORS = ["#0072B2", "#E69F00", "#009E73", "#CC79A7", "#56B4E9"]
+_BOOLEAN = ("success", "collision")
 
 
 def _Values(rows, family, humans, method, metric):
-    out = []
-    for r in rows:
-        if (
-            r.get("status") == "ok"
-            and r["family"] == family
-            and r["humans"] == humans
-            and r["method"] == method
-        ):
-            v = r.get(metric, math.nan)
-            v = float(v) if not isinstance(v, str) else math.nan
-            if not math.isnan(v):
-                out.append(v)
-    return out
+    group = Select(rows, family=family, humans=(humans,), method=method)
+    values = [Value(r, metric) for r in group]
+    return [v for v in values if not math.isnan(v)]
 
 
-def MakePlots(study, rows, out_dir) -> list[Path]:
-    """Writes ``<study>.png``: one panel per Study.panels entry, the number
-    of humans on the x axis, one box per method (median line, mean ×),
-    laid out like the paper's figures. Returns the written files."""
+def _Humans(study, family):
+    return sorted({c.humans for c in study.cells if c.family == family})
 
-    matplotlib.use("Agg")
 
+def _Tag(variant, people) -> str:
+    return f"{variant}_{people}"
+
+
+def _Plot(study, rows, path: Path, title: str) -> None:
+    """The study's panels (number of humans on the x axis, one box per
+    method: median line, mean ×) with each median's 95 % CI as a black
+    bar with caps, laid out like the paper's figures."""
     panels = study.panels
     ncols = min(4, len(panels))
     nrows = math.ceil(len(panels) / ncols)
@@ -46,7 +55,7 @@ def MakePlots(study, rows, out_dir) -> list[Path]:
     methods = [m.name for m in study.methods]
     width = 0.8 / len(methods)
     for ax, panel in zip(axes.flat, panels, strict=False):
-        humans = sorted({c.humans for c in study.cells if c.family == panel.family})
+        humans = _Humans(study, panel.family)
         for j, method in enumerate(methods):
             data, positions = [], []
             for i, h in enumerate(humans):
@@ -69,6 +78,19 @@ def MakePlots(study, rows, out_dir) -> list[Path]:
                 flierprops=dict(marker=".", markersize=4),
                 manage_ticks=False,
             )
+            for x, values in zip(positions, data, strict=True):
+                m = MedianCI(values)
+                if m.n >= 2 and not math.isnan(m.low):
+                    ax.errorbar(
+                        x,
+                        m.value,
+                        yerr=[[m.value - m.low], [m.high - m.value]],
+                        fmt="none",
+                        ecolor="black",
+                        elinewidth=2.0,
+                        capsize=3,
+                        zorder=5,
+                    )
         ax.set_xticks(range(len(humans)))
         ax.set_xticklabels([f"{h} human{'s' if h > 1 else ''}" for h in humans])
         ax.set_title(panel.title, fontsize=9)
@@ -81,18 +103,26 @@ def MakePlots(study, rows, out_dir) -> list[Path]:
         for j in range(len(methods))
     ]
     fig.legend(handles, methods, loc="lower center", ncol=len(methods), frameon=False)
-    fig.suptitle(f"{study.name}: median (line), mean (×)", fontsize=10)
+    fig.suptitle(
+        f"{title}: median (line, 95 % CI bar), mean (×)",
+        fontsize=10,
+    )
     fig.tight_layout(rect=(0, 0.06, 1, 0.96))
-    path = Path(out_dir) / f"{study.name}.png"
     fig.savefig(path, dpi=110)
     plt.close(fig)
-    return [path]
 
 
-def _Stat(values) -> str:
-    if not values:
-        return "–"
-    return f"{np.median(values):.3g} ({np.mean(values):.3g})"
+def MakePlots(study, rows, out_dir) -> list[Path]:
+    """Writes ``<study>_<variant>_<people>.png`` for every variant and
+    people model in the rows. Returns the written files."""
+    matplotlib.use("Agg")
+    paths = []
+    for variant, people in Axes(rows):
+        group = Select(rows, variant=variant, people=people)
+        path = Path(out_dir) / f"{study.name}_{_Tag(variant, people)}.png"
+        _Plot(study, group, path, f"{study.name} ({variant}, {people} people)")
+        paths.append(path)
+    return paths
 
 
 def _Rate(rows, key) -> str:
@@ -102,76 +132,119 @@ def _Rate(rows, key) -> str:
     return f"{sum(values)}/{len(values)}"
 
 
-def WriteReport(study, rows, out_dir, plots, *, wall_time_s: float, ran: int) -> Path:
-    """Writes ``<study>_report.md``: the panels' tables (median (mean) per
-    number of humans and method) and a per-cell summary."""
+def _PanelTable(study, rows, panel) -> list[str]:
+    """Median [95 % CI] per number of humans and method, and each other
+    method's mean paired difference to the first [95 % CI]."""
     methods = [m.name for m in study.methods]
-    ok = [r for r in rows if r.get("status") == "ok"]
-    failed = [r for r in rows if r.get("status") != "ok"]
-    busy = sum(float(r.get("wall_time_s") or 0.0) for r in rows)
+    first, others = methods[0], methods[1:]
+    header = methods + [f"{o} − {first}" for o in others]
     lines = [
-        f"# Study `{study.name}`",
+        f"#### {panel.title} [{panel.ylabel}]",
         "",
-        study.description,
-        "",
-        f"- Runs in the CSV: {len(rows)} ({len(ok)} completed, {len(failed)} "
-        f"failed to run), {busy / 60:.1f} min of run time in all; this "
-        f"invocation ran {ran} in {wall_time_s / 60:.1f} min of wall time.",
-        f"- Written {datetime.datetime.now().isoformat(timespec='seconds')}; "
-        f"replay any run with `sm2ith replay {study.name}.csv ROW`.",
-        "",
+        "| humans | " + " | ".join(header) + " |",
+        "|---|" + "---|" * len(header),
     ]
-    for plot in plots:
-        lines += [f"![{study.name}]({Path(plot).name})", ""]
-    lines += ["## Panels: median (mean) over the seeds", ""]
-    for panel in study.panels:
-        humans = sorted({c.humans for c in study.cells if c.family == panel.family})
-        lines += [
-            f"### {panel.title} [{panel.ylabel}]",
-            "",
-            "| humans | " + " | ".join(methods) + " |",
-            "|---|" + "---|" * len(methods),
+    for h in _Humans(study, panel.family):
+        group = Select(rows, family=panel.family, humans=(h,))
+        cells = [
+            Median(Select(group, method=m), panel.metric).Format() for m in methods
         ]
-        for h in humans:
-            cells = [
-                _Stat(_Values(ok, panel.family, h, m, panel.metric)) for m in methods
-            ]
-            lines.append(f"| {h} | " + " | ".join(cells) + " |")
-        lines.append("")
-    lines += [
-        "## Per scenario and method",
-        "",
-        "Booleans are counts over the runs; numbers are median (mean).",
-        "",
-        "| scenario | method | runs | " + " | ".join(study.summary) + " |",
+        for o in others:
+            d = Difference(group, panel.metric, o, first)
+            cells.append(f"{d.Format()} ({d.n})")
+        lines.append(f"| {h} | " + " | ".join(cells) + " |")
+    return lines + [""]
+
+
+def _Summary(study, rows) -> list[str]:
+    methods = [m.name for m in study.methods]
+    lines = [
+        "| cell | method | runs | " + " | ".join(study.summary) + " |",
         "|---|---|---|" + "---|" * len(study.summary),
     ]
     for cell in study.cells:
         for method in methods:
             group = [
                 r
-                for r in ok
-                if r["scenario"] == cell.scenario and r["method"] == method
+                for r in Select(rows, method=method, humans=(cell.humans,))
+                if r["scenario"] == cell.scenario
             ]
             if not group:
                 continue
             stats = []
             for key in study.summary:
-                if key in ("success", "collision"):
+                if key in _BOOLEAN:
                     stats.append(_Rate(group, key))
                 else:
-                    values = [
-                        float(r[key])
-                        for r in group
-                        if not isinstance(r.get(key), str)
-                        and not math.isnan(float(r.get(key, math.nan)))
-                    ]
-                    stats.append(_Stat(values))
+                    values = [Value(r, key) for r in group]
+                    values = [v for v in values if not math.isnan(v)]
+                    stats.append(
+                        f"{np.median(values):.3g} ({np.mean(values):.3g})"
+                        if values
+                        else "–"
+                    )
             lines.append(
-                f"| {cell.scenario} | {method} | {len(group)} | "
-                + " | ".join(stats)
-                + " |"
+                f"| {cell.name} | {method} | {len(group)} | " + " | ".join(stats) + " |"
             )
+    return lines + [""]
+
+
+def WriteReport(
+    study,
+    rows,
+    out_dir,
+    plots,
+    *,
+    wall_time_s: float,
+    ran: int,
+    study_wall_time_s: float | None = None,
+) -> Path:
+    """Writes ``<study>_report.md``: per variant and people model, the
+    plot, the panels' medians with 95 % CIs and the paired differences to
+    the first method, a per-cell summary, and the "what holds" table of the
+    study's findings."""
+    ok = [r for r in rows if r.get("status") == "ok"]
+    failed = [r for r in rows if r.get("status") != "ok"]
+    busy = sum(float(r.get("wall_time_s") or 0.0) for r in rows)
+    total = wall_time_s if study_wall_time_s is None else study_wall_time_s
+    lines = [
+        f"# Study `{study.name}`",
+        "",
+        study.description,
+        "",
+        f"- Runs in the CSV: {len(rows)} ({len(ok)} completed, {len(failed)} "
+        f"failed to run), {busy / 60:.1f} min of run time in all.",
+        f"- Study wall time: {total / 60:.1f} min over every invocation into "
+        f"this directory; this invocation ran {ran} runs in "
+        f"{wall_time_s / 60:.1f} min.",
+        f"- Written {datetime.datetime.now().isoformat(timespec='seconds')}; "
+        f"replay any run with `sm2ith replay {study.name}.csv ROW`.",
+        "- Medians with percentile-bootstrap 95 % CIs [low, high]; "
+        "differences are the mean over seeds of the paired difference (same "
+        "cell, seed, variant and people), with a paired bootstrap 95 % CI "
+        "and the number of pairs. Booleans count as 1/0.",
+        "",
+    ]
+    plot_by_tag = {Path(p).stem.removeprefix(f"{study.name}_"): p for p in plots}
+    for variant, people in Axes(ok):
+        group = Select(ok, variant=variant, people=people)
+        lines += [f"## Variant `{variant}`, people `{people}`", ""]
+        plot = plot_by_tag.get(_Tag(variant, people))
+        if plot is not None:
+            lines += [f"![{study.name}]({Path(plot).name})", ""]
+        lines += ["### Panels", ""]
+        for panel in study.panels:
+            lines += _PanelTable(study, group, panel)
+        lines += [
+            "### Per cell and method",
+            "",
+            "Booleans are counts over the runs; numbers are median (mean).",
+            "",
+        ]
+        lines += _Summary(study, group)
+    entries = FindingRows(study, ok)
+    if entries:
+        lines += ["## What holds", ""] + WhatHoldsTable(entries) + [""]
     if failed:
         lines += ["", "## Runs that failed to run", ""]
         lines += [f"- {r['run_id']}: {r.get('error', '')}" for r in failed]

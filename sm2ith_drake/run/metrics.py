@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from sm2ith_drake.geometry import point_segment_distance_2d
+from sm2ith_drake.control.cbf import ObstacleSegments
+from sm2ith_drake.geometry import point_segment_distance_2d, segment_closest_points
 from sm2ith_drake.humans.robot_view import HumanDistances
 
 # Tolerance for calling a state a limit violation (numerical noise).
@@ -27,27 +28,55 @@ def LimitViolations(log, robot) -> int:
     return int(bad.sum())
 
 
-# Hall's intimate space: 0.45 m from a human's centre (Section V).
+# Hall's intimate space: the 0.45 m circle around a human's centre
+# (Section V).
 INTIMATE_DISTANCE = 0.45
 
 
+def _SampleDurations(times) -> np.ndarray:
+    """How long each sample stands for: the time to the next one (the last
+    one the period before it)."""
+    times = np.asarray(times, dtype=float)
+    return np.diff(
+        times, append=times[-1] + (times[-1] - times[-2] if len(times) > 1 else 0.0)
+    )
+
+
+def BaseHumanDistances(robot, states, human_positions) -> np.ndarray:
+    """(T, H) distance from each human's centre to the base's disc (radius
+    ``robot.model.base_radius``, the footprint people see): centre distance
+    minus the disc's radius."""
+    x = np.asarray(states, dtype=float)
+    P = np.asarray(human_positions, dtype=float)  # (T, H, 2)
+    if P.size == 0:
+        return np.zeros((len(x), 0))
+    d = np.linalg.norm(P - x[:, None, :2], axis=-1)
+    return d - robot.model.base_radius
+
+
 def HumanMetrics(log, robot, human_radii) -> dict:
-    """Safety and proxemics against the true human positions."""
+    """Safety and proxemics against the true human positions.
+
+    Intimate space is the 0.45 m circle around a person's centre (the
+    paper's words). ``intimate_space_time_base``: time in which the base's
+    disc reaches into anyone's circle (base centre within 0.45 m + base
+    radius of a person's centre); ``intimate_space_time``: the same for any
+    robot body (base or arm link capsule)."""
     if not log.human_positions:
         return {}
     dist = HumanDistances(robot, log.states, log.human_positions)  # (T, H)
+    base = BaseHumanDistances(robot, log.states, log.human_positions)
     radii = np.asarray(human_radii, dtype=float)[None, :]
     gap = dist - radii  # robot surface to human surface
-    times = np.asarray(log.times)
-    dt = np.diff(
-        times, append=times[-1] + (times[-1] - times[-2] if len(times) > 1 else 0.0)
-    )
+    dt = _SampleDurations(log.times)
     inside = np.any(dist < INTIMATE_DISTANCE, axis=1)
+    inside_base = np.any(base < INTIMATE_DISTANCE, axis=1)
     return {
         "min_human_gap": float(gap.min()),
         "mean_human_distance": float(dist.mean()),
         "collision_samples": int(np.sum(np.any(gap < 0, axis=1))),
         "intimate_space_time": float(np.sum(dt[inside])),
+        "intimate_space_time_base": float(np.sum(dt[inside_base])),
     }
 
 
@@ -133,8 +162,110 @@ def Retreat(goal_distances, phases=None) -> float:
     return float(worst)
 
 
+# The base is "at its goal" within this distance when no phase of the
+# task sequence says otherwise (m).
+GOAL_TOLERANCE = 0.25
+# Freezing: the base within FREEZE_DISTANCE (m) of where it was
+# FREEZE_WINDOW (s) earlier, while not at its goal (issue 12).
+FREEZE_DISTANCE = 0.05
+FREEZE_WINDOW = 2.0
+# Progress (the head-on study): samples with a person's centre within
+# PROGRESS_RADIUS (m) of the base's centre count; the base progresses when
+# it moves toward its goal faster than PROGRESS_SPEED (m/s).
+PROGRESS_RADIUS = 2.0
+PROGRESS_SPEED = 0.02
+
+
+def FreezingTime(times, base_xy, at_goal) -> float:
+    """Time the base was frozen: a sample is frozen when the base is within
+    FREEZE_DISTANCE of its position FREEZE_WINDOW earlier (the latest sample
+    at or before that time) and not at its goal; the frozen time is the sum
+    of the intervals between consecutive frozen samples. Samples in the
+    first FREEZE_WINDOW have no earlier position and are never frozen."""
+    t = np.asarray(times, dtype=float)
+    p = np.asarray(base_xy, dtype=float).reshape(-1, 2)
+    if t.size < 2:
+        return 0.0
+    earlier = np.searchsorted(t, t - FREEZE_WINDOW + 1e-9, side="right") - 1
+    has = (earlier >= 0) & (t - t[0] >= FREEZE_WINDOW - 1e-9)
+    moved = np.linalg.norm(p - p[np.maximum(earlier, 0)], axis=1)
+    frozen = has & (moved < FREEZE_DISTANCE) & ~np.asarray(at_goal, dtype=bool)
+    both = frozen[:-1] & frozen[1:]
+    return float(np.sum(np.diff(t)[both]))
+
+
+def TimeToGoal(times, goal_errors, tolerance=GOAL_TOLERANCE) -> float:
+    """The first time the base's distance to its goal is within
+    ``tolerance`` (NaN if never)."""
+    e = np.asarray(goal_errors, dtype=float)
+    hit = np.flatnonzero(e <= tolerance)
+    return float(np.asarray(times, dtype=float)[hit[0]]) if hit.size else float("nan")
+
+
+def ProgressShare(times, base_xy, goal_xy, human_positions, at_goal=None) -> float:
+    """Share of the control steps with a person within PROGRESS_RADIUS of
+    the base (centre to centre) in which the base moves toward its goal:
+    its realized motion to the next sample, projected on the direction to
+    the goal, faster than PROGRESS_SPEED. Steps at the goal do not count;
+    NaN if no step counts."""
+    t = np.asarray(times, dtype=float)
+    p = np.asarray(base_xy, dtype=float).reshape(-1, 2)
+    g = np.asarray(goal_xy, dtype=float).reshape(-1, 2)
+    P = np.asarray(human_positions, dtype=float)
+    if t.size < 2 or P.size == 0:
+        return float("nan")
+    near = np.min(np.linalg.norm(P - p[:, None, :], axis=-1), axis=1)
+    to_goal = g - p
+    dist = np.linalg.norm(to_goal, axis=1)
+    unit = to_goal / np.maximum(dist, 1e-9)[:, None]
+    speed = np.sum(np.diff(p, axis=0) * unit[:-1], axis=1) / np.diff(t)
+    count = near[:-1] < PROGRESS_RADIUS
+    if at_goal is not None:
+        count &= ~np.asarray(at_goal, dtype=bool)[:-1]
+    if not np.any(count):
+        return float("nan")
+    return float(np.mean(speed[count] > PROGRESS_SPEED))
+
+
+def ObstacleClearance(robot, states, segments) -> float:
+    """The smallest distance between any robot capsule's surface and any
+    wall segment, in the plane (NaN without walls)."""
+    W = np.asarray(segments, dtype=float).reshape(-1, 2, 2)
+    x = np.asarray(states, dtype=float)
+    if W.size == 0 or x.size == 0:
+        return float("nan")
+    kin = robot.CalcKinematics(x[:, : robot.num_positions])
+    ends = kin.capsule_points[..., :2]  # (T, C, 2, 2)
+    lift = np.zeros(ends.shape[:-1] + (1,))
+    A = np.concatenate([ends[:, None, :, 0], lift[:, None, :, 0]], axis=-1)
+    B = np.concatenate([ends[:, None, :, 1], lift[:, None, :, 1]], axis=-1)
+    W3 = np.concatenate([W, np.zeros(W.shape[:-1] + (1,))], axis=-1)
+    _, _, c1, c2 = segment_closest_points(
+        A, B, W3[None, :, None, 0], W3[None, :, None, 1]
+    )  # (T, S, C, 3)
+    dist = np.linalg.norm((c1 - c2)[..., :2], axis=-1) - robot.capsule_radii
+    return float(dist.min())
+
+
+def _GoalTolerances(scenario, phases, base_task) -> np.ndarray:
+    """Per sample, the tolerance within which the base is at its goal: that
+    of the latest phase so far whose done_when names the base task (or
+    lists nothing), else GOAL_TOLERANCE."""
+    tol = []
+    for phase in scenario.sequence:
+        if not phase.done_when or base_task in phase.done_when:
+            tol.append(phase.tolerance)
+        else:
+            tol.append(tol[-1] if tol else GOAL_TOLERANCE)
+    if not tol:
+        return np.full(len(phases), GOAL_TOLERANCE)
+    idx = np.clip(np.asarray(phases, dtype=int), 0, len(tol) - 1)
+    return np.asarray(tol)[idx]
+
+
 # SummarizeRun figures a campaign row carries over unchanged.
 _SUMMARY_COLUMNS = (
+    "intimate_space_time_base",
     "intimate_space_time",
     "mean_human_distance",
     "min_human_gap",
@@ -153,6 +284,9 @@ _SUMMARY_COLUMNS = (
 CAMPAIGN_METRICS = [
     "success",
     "navigation_time",
+    "time_to_goal",
+    "freezing_time",
+    "progress_share",
     "ee_error_mean",
     "ee_error_max",
     "base_error_mean",
@@ -161,6 +295,7 @@ CAMPAIGN_METRICS = [
     "base_retreat",
     "min_human_distance",
     "collision",
+    "min_obstacle_clearance",
     *_SUMMARY_COLUMNS,
     "simulated_time",
 ]
@@ -180,9 +315,15 @@ def CampaignRow(log, robot, scenario, metrics: dict, reference_xy=None) -> dict:
     The EE error is that of the highest-priority EE task (ee_position or
     ee_position_in_base), the base error that of the first base_position or
     base_pose task. Navigation time is the completion time of the task
-    sequence (NaN when it did not complete: a timeout). Distances to people
+    sequence (NaN when it did not complete: a timeout); success is its
+    completion within the time limit. Time to goal is the same with a
+    sequence, and without one the first time the base is within
+    GOAL_TOLERANCE of its goal. Freezing time, progress share: see
+    FreezingTime, ProgressShare (at the goal: the base within the tolerance
+    of the latest phase that waits for the base task). Distances to people
     are from a human's centre to the nearest robot body (base or any arm
-    link); the gap subtracts the person's radius.
+    link); the gap subtracts the person's radius. Obstacle clearance: any
+    robot capsule to any wall.
     """
     nan = float("nan")
     row = dict.fromkeys(CAMPAIGN_METRICS, nan)
@@ -194,21 +335,41 @@ def CampaignRow(log, robot, scenario, metrics: dict, reference_xy=None) -> dict:
     if ee is not None and log.task_errors.get(ee):
         e = np.linalg.norm(np.asarray(log.task_errors[ee])[:, :3], axis=1)
         row["ee_error_mean"], row["ee_error_max"] = float(e.mean()), float(e.max())
+    states = np.asarray(log.states)
+    goal_errors = None
     if base is not None and log.task_errors.get(base):
-        e = np.linalg.norm(np.asarray(log.task_errors[base])[:, :2], axis=1)
+        e_xy = np.asarray(log.task_errors[base])[:, :2]
+        goal_errors = e = np.linalg.norm(e_xy, axis=1)
         row["base_error_mean"] = float(e.mean())
         row["base_error_final"] = float(e[-1])
         row["base_retreat"] = Retreat(e, phases)
-    states = np.asarray(log.states)
+        at_goal = e <= _GoalTolerances(scenario, log.phases or [0] * e.size, base)
+        row["freezing_time"] = FreezingTime(times, states[:, :2], at_goal)
+        if log.human_positions:
+            # The goal is where the error vanishes: p − e.
+            row["progress_share"] = ProgressShare(
+                times,
+                states[:, :2],
+                states[:, :2] - e_xy,
+                log.human_positions,
+                at_goal,
+            )
     if reference_xy is not None and len(states):
         row["base_path_deviation"] = PathDeviation(states[:, :2], reference_xy)
     if scenario.sequence:
         done = metrics.get("phases_completed", 0) == len(scenario.sequence)
         row["success"] = bool(done)
         row["navigation_time"] = float(metrics["sequence_time"]) if done else nan
+        row["time_to_goal"] = row["navigation_time"]
     else:
         row["success"] = True
         row["navigation_time"] = float(times[-1]) if times.size else nan
+        if goal_errors is not None:
+            row["time_to_goal"] = TimeToGoal(times, goal_errors)
+    if scenario.obstacles and len(states):
+        row["min_obstacle_clearance"] = ObstacleClearance(
+            robot, states, ObstacleSegments(scenario.obstacles)
+        )
     if log.human_positions:
         dist = HumanDistances(robot, log.states, log.human_positions)
         row["min_human_distance"] = float(dist.min())
