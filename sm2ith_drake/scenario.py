@@ -82,14 +82,17 @@ class ControllerConfig:
     # setting, e.g. {PIQP: {max_iter: 50}}); "SNOPT" / "Ipopt" the NLPs.
     solver_options: SolverOptions = field(default_factory=SolverOptions)
     # Sequential QP iterations per stage and control step (rti only): the
-    # most passes a step may take. With an interactive predictor a pass
-    # after the first runs only while the plan's predicted human actions are
+    # most passes a step may take. A pass after the first runs only while
+    # the last one has not converged: its plan's predicted human actions are
     # more than rti_prediction_tolerance (m/s) from what the people's model
-    # does at the plan's states (the KKT embedding has not converged); 0:
-    # always run every pass. Deterministic (no clock), so a cloned Context
-    # reproduces the run.
+    # does at the plan's states (the KKT embedding), or the plan violates
+    # the nonlinear barrier or self-collision rows by more than
+    # rti_constraint_tolerance (their QPs kept only the linearizations).
+    # rti_prediction_tolerance 0: always run every pass. Deterministic (no
+    # clock), so a cloned Context reproduces the run.
     rti_iterations: int = 1
     rti_prediction_tolerance: float = 5e-3
+    rti_constraint_tolerance: float = 1e-3
     # Damping ½ρ‖z − z̄‖² toward the linearization point (the shifted previous
     # plan) in every RTI QP, as in Levenberg–Marquardt: it keeps single QP
     # steps where the linearization holds (near arm singularities, at the
@@ -243,6 +246,14 @@ class SafetyConfig:
     # by up to 2.3 cm. (With predicted people who avoided the base only, 3
     # steps had caused a 31 cm hit in one adversarial run: README.)
     guard_steps: int = 3
+    # Whom the guard holds: a person whose measured position has deviated
+    # from the last plan's prediction for them by more than guard_deviation
+    # (m) at a control step, for the guard_hold (s) after it. People who
+    # move as predicted keep the interactive prediction alone, so the guard
+    # does not turn SM²ITH into CVMM; React predicts nothing and is never
+    # guarded. 0: every person, always (the guard of earlier versions).
+    guard_deviation: float = 0.05
+    guard_hold: float = 1.0
     # "safe": the shipped safety mechanism on top of the paper's DT-CBF (the
     # guard above); "paper": the paper's formulation, the DT-CBF against the
     # prediction only (guard_steps ignored). Studies run both variants.

@@ -156,6 +156,7 @@ def _ValidateController(scenario: Scenario) -> None:
     for name in (
         "rti_proximal_weight",
         "rti_prediction_tolerance",
+        "rti_constraint_tolerance",
         "lexicographic_tolerance",
         "self_collision_distance",
         "control_period",
@@ -229,6 +230,8 @@ def _ValidatePeople(scenario: Scenario) -> None:
         raise ScenarioError(f"safety.mode must be 'safe' or 'paper', got {s.mode!r}")
     if s.guard_steps < 0:
         raise ScenarioError(f"safety.guard_steps must be ≥ 0, got {s.guard_steps}")
+    _NonNegative(s.guard_deviation, "safety.guard_deviation")
+    _NonNegative(s.guard_hold, "safety.guard_hold")
     _NonNegative(s.human_margin, "safety.human_margin")
     _NonNegative(s.obstacle_margin, "safety.obstacle_margin")
     _Positive(s.human_radius, "safety.human_radius")

@@ -402,7 +402,10 @@ def test_closed_loop_with_the_driver_reaches_the_goal():
     from sm2ith_drake.lcm.sm2ith_lcmtypes import lcmt_sm2ith_plan
     from sm2ith_drake.run.hardware import DriverSummary
 
-    bench = _Bench(_Scenario())
+    # Both RTI passes every step: the arm's redundant wrist settles within
+    # the 12 s (with one pass where the prediction has converged it still
+    # drifts at ~0.06 rad/s then; the base is at its goal either way).
+    bench = _Bench(_Scenario(text="{controller: {rti_prediction_tolerance: 0}}"))
     scenario, robot = bench.scenario, bench.robot
     driver = MakeDriverDiagram(scenario=scenario, lcm=bench.lcm, robot=robot)
     driver_sim = Simulator(driver)

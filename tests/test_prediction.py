@@ -533,3 +533,52 @@ def test_preferred_velocity_is_the_low_pass_filtered_measurement():
     slot = int(np.nonzero(c.predictor.slot_ids == 7)[0][0])
     np.testing.assert_allclose(c.predictor.v_pref[slot], filtered)
     assert c.predictor.v_pref[slot][0] > 0.05  # not the latest measurement
+
+
+def test_guard_holds_exactly_the_people_who_deviate_from_the_last_plan():
+    """UpdateGuards: a person is guarded for hold_steps from a step where
+    their measured position is farther than the deviation from where the
+    last plan predicted them; unpredicted people are not judged; deviation
+    0 guards everyone."""
+    from types import SimpleNamespace
+
+    from sm2ith_drake.control.prediction.slots import PredictedNow, UpdateGuards
+
+    solution = SimpleNamespace(
+        success=True,
+        human_slot_ids=np.array([7, -1, 9]),
+        human_predictions=np.array(
+            [[[0.0, 0.0], [5.0, 5.0], [1.0, 0.0]], [[0.2, 0.0], [5.0, 5.0], [1.0, 0.2]]]
+        ),
+    )
+    predicted = PredictedNow(solution, elapsed=0.1, time_step=0.2)
+    assert set(predicted) == {7, 9}
+    np.testing.assert_allclose(predicted[7], [0.1, 0.0])
+    np.testing.assert_allclose(predicted[9], [1.0, 0.1])
+    assert PredictedNow(SimpleNamespace(success=False), 0.1, 0.2) == {}
+
+    def estimate(positions):
+        ids = np.array([7, 9, 11])
+        return HumanEstimate(
+            ids=ids,
+            positions=np.array(positions, dtype=float),
+            velocities=np.zeros((3, 2)),
+        )
+
+    # 7 is where predicted, 9 is 0.2 m off, 11 was not predicted.
+    guards = UpdateGuards(
+        {},
+        estimate([[0.1, 0.01], [1.2, 0.1], [3.0, 3.0]]),
+        predicted,
+        deviation=0.05,
+        hold_steps=3,
+    )
+    assert guards == {9: 3}
+    # Back on the prediction: counts down, then released.
+    on_track = estimate([[0.1, 0.0], [1.0, 0.1], [3.0, 3.0]])
+    for left in (2, 1):
+        guards = UpdateGuards(guards, on_track, predicted, deviation=0.05, hold_steps=3)
+        assert guards == {9: left}
+    assert UpdateGuards(guards, on_track, predicted, deviation=0.05, hold_steps=3) == {}
+    everyone = UpdateGuards({}, on_track, {}, deviation=0.0, hold_steps=2)
+    assert everyone == {7: 2, 9: 2, 11: 2}

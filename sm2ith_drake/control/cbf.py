@@ -43,6 +43,10 @@ def ObstacleSegments(obstacles) -> np.ndarray:
     return np.array(segments).reshape(-1, 2, 2)
 
 
+# Where the guard rows put a human they do not hold (m): out of reach.
+_UNGUARDED = np.array([1.0e4, 1.0e4])
+
+
 class DtCbfGroup(ConstraintGroup):
     """h_{k+1} − (1 − γ) h_k ≥ 0 for robot capsules vs. humans and walls.
 
@@ -127,10 +131,17 @@ class DtCbfGroup(ConstraintGroup):
         else:
             self.rows = self.cols = np.zeros(0, dtype=int)
 
-    def SetGuard(self, positions, velocities, time_step):
-        """The measured humans for the guard rows."""
-        self.guard_p0 = np.asarray(positions, dtype=float).reshape(-1, 2)
-        self.guard_v0 = np.asarray(velocities, dtype=float).reshape(-1, 2)
+    def SetGuard(self, positions, velocities, time_step, guarded=None):
+        """The measured humans for the guard rows; a human not ``guarded``
+        (H,) bool (default: all are) is moved out of reach, so its rows
+        hold trivially (the QP's pattern stays)."""
+        p = np.array(positions, dtype=float).reshape(-1, 2)
+        v = np.array(velocities, dtype=float).reshape(-1, 2)
+        if guarded is not None:
+            off = ~np.asarray(guarded, dtype=bool)
+            p[off] = _UNGUARDED + 10.0 * np.arange(len(p))[off, None]
+            v[off] = 0.0
+        self.guard_p0, self.guard_v0 = p, v
         self.guard_dt = float(time_step)
 
     def _GuardRows(self, point):

@@ -72,6 +72,7 @@ class HierarchicalSolver:
         rti_iterations: int = 1,
         rti_proximal_weight: float = 1.0,
         rti_prediction_tolerance: float = 0.0,
+        rti_constraint_tolerance: float = 0.0,
     ):
         self.program = program
         self.method = method
@@ -79,6 +80,7 @@ class HierarchicalSolver:
         self.tolerance = lexicographic_tolerance
         self.rti_iterations = max(1, int(rti_iterations))
         self.rti_prediction_tolerance = float(rti_prediction_tolerance)
+        self.rti_constraint_tolerance = float(rti_constraint_tolerance)
         self.stages = MakeStages(program.tasks, method)
         options = solver_options if solver_options is not None else SolverOptions()
         if solver == "rti":
@@ -99,8 +101,7 @@ class HierarchicalSolver:
         the previous pass's result, and solves the whole hierarchy on that
         one linearization, so every stage is feasible given the stage above
         it. With ``rti_prediction_tolerance`` > 0, no further pass runs once
-        the plan's predicted human actions are within it of the people's
-        model at the plan's states (Predictor.PredictionErrors).
+        a pass has converged (:meth:`_Converged`).
         A pass after the first that fails keeps the previous pass's plan. A
         stage below the first that fails leaves the plan of the stages above
         it (status "solved through ...": every hard constraint and the higher
@@ -134,14 +135,8 @@ class HierarchicalSolver:
                 break
             z, results, status = z_pass, pass_results, why
             passes_run = it + 1
-            if (
-                it + 1 < passes
-                and self.rti_prediction_tolerance > 0
-                and program.predictor is not None
-            ):
-                errors = program.predictor.PredictionErrors(z)
-                if not errors.size or errors.max() <= self.rti_prediction_tolerance:
-                    break
+            if it + 1 < passes and self._Converged(z, targets):
+                break
         q, nu, u = program.layout.Split(z)
         kin = program.robot.CalcKinematics(q)
         predictor = program.predictor
@@ -160,6 +155,21 @@ class HierarchicalSolver:
             iterations=int(iterations),
             passes=passes_run,
         )
+
+    def _Converged(self, z, targets) -> bool:
+        """Whether another pass can be skipped after one that produced z
+        (ControllerConfig.rti_iterations): the predicted human actions agree
+        with the people's model and the plan keeps the nonlinear safety
+        rows, each within its tolerance. Never with tolerance 0."""
+        if self.rti_prediction_tolerance <= 0:
+            return False
+        predictor = self.program.predictor
+        if predictor is not None:
+            errors = predictor.PredictionErrors(z)
+            if errors.size and errors.max() > self.rti_prediction_tolerance:
+                return False
+        point = self.program.MakePoint(z, targets)
+        return self.program.SafetyViolation(point) <= self.rti_constraint_tolerance
 
     def _SolveHierarchy(self, point, lower, upper):
         """One pass of every stage at one linearization point."""

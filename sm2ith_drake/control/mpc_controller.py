@@ -178,6 +178,7 @@ class MpcController:
             rti_iterations=config.rti_iterations,
             rti_proximal_weight=config.rti_proximal_weight,
             rti_prediction_tolerance=config.rti_prediction_tolerance,
+            rti_constraint_tolerance=config.rti_constraint_tolerance,
         )
         self.safety = safety or SafetyConfig()
         self.period = ControlPeriod(config)

@@ -174,7 +174,12 @@ class MpcProgram:
         if self.predictor is not None:
             self.predictor.ApplyBounds(lower, upper)
             if self.cbf is not None and self.cbf.num_guard:
-                self.cbf.SetGuard(self.predictor.p0, self.predictor.v0, self.time_step)
+                self.cbf.SetGuard(
+                    self.predictor.p0,
+                    self.predictor.v0,
+                    self.time_step,
+                    guarded=self.predictor.guarded,
+                )
         return lower, upper
 
     def _WidenForBraking(self, lower, upper, q0, nu0) -> None:
@@ -209,6 +214,18 @@ class MpcProgram:
         return LinearizationPoint(
             z=z, q=q, nu=nu, u=u, kin=self.robot.CalcKinematics(q), targets=targets
         )
+
+    def SafetyViolation(self, point: LinearizationPoint) -> float:
+        """How far the plan at ``point`` violates the nonlinear barrier and
+        self-collision rows (their QPs kept only the linearizations): the
+        largest shortfall below a row's lower bound, 0 if none."""
+        worst = 0.0
+        for group, lower, _ in self.ConstraintGroups():
+            if group is self.self_collision or group is self.cbf:
+                g, _ = group.Eval(point)
+                if g.size:
+                    worst = max(worst, float(np.max(lower - g)))
+        return worst
 
     def Rollout(self, q0: np.ndarray, nu0: np.ndarray, u: np.ndarray) -> np.ndarray:
         """z from integrating the model with inputs u (ν clipped to limits)."""

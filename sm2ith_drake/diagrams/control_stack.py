@@ -143,6 +143,8 @@ def AddControlStack(
                 obstacle_segments=ObstacleSegments(scenario.obstacles),
                 human_radius=scenario.safety.human_radius,
                 with_intents=with_intents,
+                guard_deviation=scenario.safety.guard_deviation,
+                guard_hold=scenario.safety.guard_hold,
             ),
         )
         builder.Connect(

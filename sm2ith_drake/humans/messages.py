@@ -89,6 +89,10 @@ class HumanPrediction:
     preferred_by_id: dict = field(default_factory=dict)
     # People tracked but not predicted: no free slot (more than max_humans).
     dropped: int = 0
+    # Slots whose person the MPC's guard holds (SafetyConfig.guard_deviation)
+    # and, by id, for how many more control steps (remembered).
+    guarded: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    guard_steps_by_id: dict = field(default_factory=dict)
     # The estimate the prediction was made from (every tracked person).
     estimate: HumanEstimate = field(default_factory=HumanEstimate)
     # Wall time spent making this prediction (s): part of the control step's

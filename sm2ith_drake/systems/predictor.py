@@ -57,9 +57,12 @@ class HumanPredictor(LeafSystem):
         obstacle_segments=(),
         human_radius: float = 0.3,
         with_intents: bool = False,
+        guard_deviation: float = 0.0,
+        guard_hold: float = 0.0,
     ):
         """``config`` is a PredictionConfig; ``horizon`` and ``time_step``
-        the MPC's; ``with_intents`` declares the ``human_intents`` input."""
+        the MPC's; ``with_intents`` declares the ``human_intents`` input;
+        ``guard_deviation``, ``guard_hold`` as in SafetyConfig."""
         super().__init__()
         self.model = HumanPredictorModel(
             config,
@@ -69,6 +72,8 @@ class HumanPredictor(LeafSystem):
             robot=robot,
             obstacles=obstacle_segments,
             human_radius=human_radius,
+            guard_deviation=guard_deviation,
+            guard_hold=guard_hold,
         )
         n, m = robot.num_positions, robot.num_velocities
         self._n = n
@@ -110,6 +115,7 @@ class HumanPredictor(LeafSystem):
             q0=x[: self._n],
             nu0=x[self._n :],
             warm_start_inputs=plan.warm_start_inputs,
+            last_solution=plan.solution,
         )
 
     @PROFILER.Timed("predictor")

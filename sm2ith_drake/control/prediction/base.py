@@ -49,6 +49,7 @@ class Predictor:
         self.p0 = ParkedPositions(H)
         self.v0 = np.zeros((H, 2))
         self.v_pref = np.zeros((H, 2))
+        self.guarded = np.zeros(H, dtype=bool)
         self.positions = HeldPrediction(self.p0, horizon)
 
     def AddVariables(self, layout) -> None:
@@ -66,6 +67,8 @@ class Predictor:
         self.p0 = self.positions[0]
         self.v0 = np.asarray(prediction.velocities, dtype=float)
         self.v_pref = np.asarray(prediction.preferred_velocities, dtype=float)
+        guarded = np.asarray(prediction.guarded, dtype=bool)
+        self.guarded = guarded if guarded.shape == self.active.shape else self.active
 
     def ApplyBounds(self, lower: np.ndarray, upper: np.ndarray) -> None:
         """Pins the predicted positions (React, CVMM) — in place."""

@@ -27,7 +27,9 @@ from sm2ith_drake.control.prediction.slots import (
     DefaultNeighbors,
     FilterPreferredVelocities,
     PredictorState,
+    PredictedNow,
     SelectNeighbors,
+    UpdateGuards,
 )
 from sm2ith_drake.control.profiling import PROFILER
 from sm2ith_drake.control.robot_groups import Rollout
@@ -48,9 +50,12 @@ class HumanPredictorModel:
         robot,
         obstacles=(),
         human_radius: float = 0.3,
+        guard_deviation: float = 0.0,
+        guard_hold: float = 0.0,
     ):
         """``config`` is a PredictionConfig; ``horizon``, ``time_step`` are
-        the MPC's; ``obstacles`` (S, 2, 2) wall segments."""
+        the MPC's; ``obstacles`` (S, 2, 2) wall segments; ``guard_deviation``
+        and ``guard_hold`` as in SafetyConfig (whom the MPC's guard holds)."""
         if config.predictor not in PREDICTORS:
             raise ValueError(f"unknown predictor '{config.predictor}'")
         self.config = config
@@ -60,6 +65,9 @@ class HumanPredictorModel:
         self.num_slots = int(config.max_humans)
         tau = config.preferred_velocity_time_constant
         self._alpha = 1.0 if tau <= 0 else control_period / (tau + control_period)
+        self.control_period = control_period
+        self.guard_deviation = float(guard_deviation)
+        self.guard_hold_steps = max(1, int(np.ceil(guard_hold / control_period - 1e-9)))
         self.orca = None
         num_neighbors = 0
         if config.predictor == "orca_kkt":
@@ -89,12 +97,15 @@ class HumanPredictorModel:
         q0=None,
         nu0=None,
         warm_start_inputs=None,
+        last_solution=None,
     ) -> tuple[HumanPrediction, PredictorState]:
         """This step's prediction and the state after it (``state`` is not
         changed). The ORCA model needs the robot's measured state (q0, ν0)
         and the warm-start inputs (N, m) to simulate the people against;
         without them (or with a non-finite state) its prediction holds the
-        people where they are and carries no actions."""
+        people where they are and carries no actions. ``last_solution`` (the
+        controller's last MpcSolution, made one control period ago) is what
+        the guard judges the people's motion against."""
         start = time.perf_counter()
         cfg = self.config
         preferred = FilterPreferredVelocities(
@@ -120,6 +131,16 @@ class HumanPredictorModel:
                     positions, actions, multipliers = self.orca.ForwardSimulate(
                         slots, neighbors, robot
                     )
+        guards = {}
+        if cfg.predictor != "react":  # React predicts nothing to contradict
+            guards = UpdateGuards(
+                state.guard_steps,
+                estimate,
+                PredictedNow(last_solution, self.control_period, self.dt),
+                deviation=self.guard_deviation,
+                hold_steps=self.guard_hold_steps,
+            )
+        guarded = np.array([int(i) in guards for i in slots.slot_ids], dtype=bool)
         prediction = HumanPrediction(
             model=cfg.predictor,
             slot_ids=slots.slot_ids,
@@ -132,6 +153,8 @@ class HumanPredictorModel:
             multipliers=multipliers,
             preferred_by_id=preferred,
             dropped=slots.dropped,
+            guarded=guarded & slots.active,
+            guard_steps_by_id=guards,
             estimate=estimate if estimate is not None else HumanEstimate(),
         )
         prediction.compute_time = time.perf_counter() - start
@@ -155,5 +178,6 @@ def NextState(prediction: HumanPrediction) -> PredictorState:
         slot_ids=np.array(prediction.slot_ids),
         neighbors=np.array(prediction.neighbors),
         preferred_velocities=dict(prediction.preferred_by_id),
+        guard_steps=dict(prediction.guard_steps_by_id),
         last_prediction=prediction,
     )

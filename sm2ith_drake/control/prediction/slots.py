@@ -46,6 +46,8 @@ class PredictorState:
     neighbors: np.ndarray
     # The preferred velocity of every tracked human, by id.
     preferred_velocities: dict = field(default_factory=dict)
+    # Control steps each guarded human stays guarded, by id.
+    guard_steps: dict = field(default_factory=dict)
     # The last prediction made (for drawing; not used to predict).
     last_prediction: object = None
 
@@ -141,6 +143,55 @@ def AssignSlots(
     return HumanSlots(
         slot_ids=slot_ids, active=active, p0=p0, v0=v0, v_pref=v_pref, dropped=dropped
     )
+
+
+def UpdateGuards(
+    previous: dict,
+    estimate: HumanEstimate | None,
+    predicted: dict,
+    *,
+    deviation: float,
+    hold_steps: int,
+) -> dict:
+    """Control steps each tracked human stays guarded (SafetyConfig), by id:
+    ``hold_steps`` from a step where their measured position is more than
+    ``deviation`` from ``predicted`` (id → the position the last plan
+    predicted for now; people it did not predict are not judged), counting
+    down otherwise; every person, always, with deviation 0."""
+    if estimate is None:
+        return {}
+    out = {}
+    for hid, p in zip(estimate.ids, estimate.positions, strict=True):
+        hid = int(hid)
+        left = max(previous.get(hid, 0) - 1, 0)
+        expected = predicted.get(hid)
+        if deviation <= 0:
+            left = hold_steps
+        elif (
+            expected is not None
+            and np.all(np.isfinite(p))
+            and np.linalg.norm(np.asarray(p) - expected) > deviation
+        ):
+            left = hold_steps
+        if left > 0:
+            out[hid] = left
+    return out
+
+
+def PredictedNow(solution, elapsed: float, time_step: float) -> dict:
+    """id → where ``solution`` (an MpcSolution or None; a failed one
+    predicts nothing) predicted each person ``elapsed`` s after it was
+    made, interpolated along its predicted positions."""
+    if solution is None or not getattr(solution, "success", False):
+        return {}
+    positions = getattr(solution, "human_predictions", None)
+    ids = getattr(solution, "human_slot_ids", None)
+    if positions is None or ids is None or len(positions) < 2:
+        return {}
+    s = min(max(elapsed / time_step, 0.0), len(positions) - 1.0)
+    k = min(int(s), len(positions) - 2)
+    at = positions[k] + (s - k) * (positions[k + 1] - positions[k])
+    return {int(hid): at[j] for j, hid in enumerate(ids) if hid >= 0}
 
 
 def SelectNeighbors(
