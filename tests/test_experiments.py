@@ -9,6 +9,7 @@ import sys
 import numpy as np
 import pytest
 
+from sm2ith_drake.cli.experiment import RunScenarioText
 from sm2ith_drake.experiments.campaign import (
     COLUMNS,
     ReadRows,
@@ -33,6 +34,7 @@ from sm2ith_drake.experiments.statistics import (
 )
 from sm2ith_drake.experiments.studies import DOORWAY_PEOPLE, STUDIES
 from sm2ith_drake.robots import MobileManipulator
+from sm2ith_drake.robots.models import MODELS
 from sm2ith_drake.run.metrics import (
     CAMPAIGN_METRICS,
     INTIMATE_DISTANCE,
@@ -47,6 +49,7 @@ from sm2ith_drake.run.metrics import (
     TimeToGoal,
 )
 from sm2ith_drake.scenario import HumanConfig, PhaseConfig, Scenario, TaskConfig
+from sm2ith_drake.scenario_loader import LoadScenario
 from sm2ith_drake.systems.logger import RunLog
 
 
@@ -455,6 +458,22 @@ def test_doorway_people(robot):
     assert firsts == {-1.0, 1.0}
 
 
+@pytest.mark.parametrize("robot", ["stretch3", "ridgeback_ur10"])
+def test_doorway_people_fit_the_scenario(robot):
+    """The sampler's corridor, door and robot are the YAML scene's."""
+    sampler = DOORWAY_PEOPLE[robot]
+    scenario = LoadScenario(
+        filename="doorway.scenarios.yaml", scenario_name=f"doorway_{robot}"
+    )
+    xs = sorted({abs(v[0]) for o in scenario.obstacles for v in o.vertices})
+    assert xs == [sampler.door_half_width, sampler.corridor_half_width]
+    assert list(scenario.robot.initial_q[:2]) == list(sampler.robot_start)
+    assert MODELS[robot].base_radius == sampler.robot_radius
+    goal = np.asarray(scenario.tasks[0].target)
+    # People's goals lie beyond the robot's goal and its disc.
+    assert sampler.goal_y[0] - abs(goal[1]) > sampler.robot_radius + sampler.radius
+
+
 def test_paired_difference_cancels_what_the_pair_shares():
     rng = np.random.default_rng(0)
     shared = rng.normal(0.0, 5.0, 12)  # the seed's people: large spread
@@ -534,6 +553,15 @@ def test_mini_doorway_campaign(tmp_path):
     }
     assert people[("SM2ITH", 1)] == people[("CVMM", 1)] == people[("React", 1)]
     assert people[("SM2ITH", 0)] != people[("SM2ITH", 1)]
+    # A row replays with the people it met (sm2ith replay).
+    row = next(r for r in rows if r["robot"] == "stretch3" and r["seed"] == 1)
+    replayed = LoadScenario(
+        filename=row["scenario_file"],
+        scenario_name=row["scenario"],
+        scenario_text=RunScenarioText(row),
+    )
+    assert replayed.humans == people[(row["method"], 1)]
+    assert replayed.random_seed == 1
     report = result.report.read_text()
     assert "Variant `safe`, people `orca`" in report and "CVMM − SM2ITH" in report
     assert (tmp_path / "doorway_safe_orca.png").exists()

@@ -81,7 +81,7 @@ def _List(text, valid, option):
     return values
 
 
-def _RunText(row) -> str:
+def RunScenarioText(row) -> str:
     """A row's full override: its method's and variant's YAML, and the
     people it met (the seed's draw in its people model) with the seed, so
     that ``sm2ith run`` simulates exactly that run."""
@@ -128,7 +128,7 @@ def _Replay(args) -> int:
     print(f"replaying {row['run_id']} (seed {row['seed']})")
     args.file = row["scenario_file"]
     args.scenario = row["scenario"]
-    args.scenario_text = _RunText(row)
+    args.scenario_text = RunScenarioText(row)
     args.seed = None  # the people are in the text
     duration = float(row.get("duration") or 0.0)
     args.duration = duration if duration > 0 else None

@@ -25,6 +25,7 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 import numpy as np
+import yaml
 from tqdm import tqdm
 
 from sm2ith_drake.experiments.findings import WriteFindings
@@ -33,6 +34,7 @@ from sm2ith_drake.experiments.people import (
     PEOPLE_MODELS,
     VARIANTS,
     ApplySeed,
+    MergeYaml,
 )
 from sm2ith_drake.experiments.report import MakePlots, WriteReport
 from sm2ith_drake.experiments.runs import LoadRunScenario, PlanRuns, RunSpec
@@ -68,21 +70,21 @@ COLUMNS = RUN_COLUMNS + CAMPAIGN_METRICS
 
 def _ReferencePath(spec: RunSpec, cache_dir: Path):
     """The "optimal path": the base path of the same scenario and controller
-    (method and variant) with no people, computed once and cached. Without
-    people the predictors have nobody to predict, so SM²ITH, CVMM and React
-    share it."""
+    with no people, computed once per scenario, controller and variant and
+    cached. Without people the predictors have nobody to predict, so the
+    method's prediction override is left out: SM²ITH, CVMM and React share
+    one reference (the weighted sum, another controller, has its own)."""
 
-    text = (
-        f"{spec.scenario_file}|{spec.scenario}|{spec.scenario_text}|{spec.duration:g}"
-    )
-    digest = hashlib.sha1(text.encode()).hexdigest()[:10]
+    overrides = yaml.safe_load(spec.scenario_text or "{}") or {}
+    overrides.pop("prediction", None)
+    text = MergeYaml(yaml.safe_dump(overrides)) if overrides else ""
+    key = f"{spec.scenario_file}|{spec.scenario}|{text}|{spec.duration:g}"
+    digest = hashlib.sha1(key.encode()).hexdigest()[:10]
     path = cache_dir / f"{spec.scenario}__{digest}.npy"
     if path.exists():
         return np.load(path)
     scenario = LoadScenario(
-        filename=spec.scenario_file,
-        scenario_name=spec.scenario,
-        scenario_text=spec.scenario_text,
+        filename=spec.scenario_file, scenario_name=spec.scenario, scenario_text=text
     )
     scenario = dataclasses.replace(scenario, humans=[])
     result = RunSimulation(
@@ -136,7 +138,7 @@ def _Parse(raw: dict) -> dict:
     for key, value in raw.items():
         if key in ("humans", "seed"):
             out[key] = int(value)
-        elif key in ("success", "collision"):
+        elif key in ("success", "collision", "wall_collision"):
             out[key] = value == "True" if value in ("True", "False") else math.nan
         elif key in CAMPAIGN_METRICS or key in ("wall_time_s", "duration"):
             try:

@@ -2,9 +2,11 @@
 paper's findings (a)–(d) (issue 12).
 
 Rows pair on (cell, seed) within one variant and people model: the two
-methods met the same people. Pairs where either value is missing (e.g. a
-navigation time of a run that timed out) are dropped, so each estimate
-states its number of pairs.
+methods met the same people. A run that did not reach its goal counts with
+its time limit as its navigation time and time to goal (a lower bound, so a
+method that times out is not compared on its successes alone); pairs where
+either value is still missing are dropped, so each estimate states its
+number of pairs.
 """
 
 from __future__ import annotations
@@ -19,12 +21,16 @@ from sm2ith_drake.experiments.statistics import (
     Verdict,
 )
 
-_BOOLEAN = ("success", "collision")
+# Times that are NaN when the goal was not reached: then the time limit.
+_CENSORED = ("navigation_time", "time_to_goal")
 
 
 def Value(row: dict, metric: str) -> float:
-    """A row's metric as a float (booleans 1/0, missing NaN)."""
+    """A row's metric as a float (booleans 1/0, missing NaN; a time to a
+    goal never reached: the run's simulated time, its time limit)."""
     v = row.get(metric, math.nan)
+    if metric in _CENSORED and _Nan(v) and row.get("success") is False:
+        v = row.get("simulated_time", math.nan)
     if isinstance(v, bool):
         return float(v)
     if isinstance(v, str):
@@ -33,6 +39,10 @@ def Value(row: dict, metric: str) -> float:
         except ValueError:
             return math.nan
     return float(v)
+
+
+def _Nan(v) -> bool:
+    return v is None or v == "" or (isinstance(v, float) and math.isnan(v))
 
 
 def Axes(rows) -> list[tuple[str, str]]:
@@ -120,12 +130,12 @@ def WhatHoldsTable(entries) -> list[str]:
         return []
     lines = [
         "| finding | claim | robot | people | variant | paired difference "
-        "(mean [95 % CI], pairs) | verdict |",
+        "(mean [95 % CI], pairs n) | verdict |",
         "|---|---|---|---|---|---|---|",
     ]
     for e in entries:
         diffs = "; ".join(
-            f"{name}: {d.Format()} ({d.n})" for name, d in e["comparisons"]
+            f"{name}: {d.Format(with_n=True)}" for name, d in e["comparisons"]
         )
         lines.append(
             f"| {e['key']} | {e['claim']} | {e['robot']} | {e['people']} | "

@@ -23,9 +23,11 @@ from sm2ith_drake.experiments.findings import (
 )
 from sm2ith_drake.experiments.statistics import MedianCI
 
-# One colour per method, in the study's order (colour-blind safe).
+# One colour per method, in the study's order (colour-blind safe), and the
+# colour of the medians' CI bars.
 _COLORS = ["#0072B2", "#E69F00", "#009E73", "#CC79A7", "#56B4E9"]
-_BOOLEAN = ("success", "collision")
+_CI_COLOR = "#D55E00"
+_BOOLEAN = ("success", "collision", "wall_collision")
 
 
 def _Values(rows, family, humans, method, metric):
@@ -44,8 +46,8 @@ def _Tag(variant, people) -> str:
 
 def _Plot(study, rows, path: Path, title: str) -> None:
     """The study's panels (number of humans on the x axis, one box per
-    method: median line, mean ×) with each median's 95 % CI as a black
-    bar with caps, laid out like the paper's figures."""
+    method: median line, mean ×, grey whiskers) with each median's 95 % CI
+    as a red bar with caps, laid out like the paper's figures."""
     panels = study.panels
     ncols = min(4, len(panels))
     nrows = math.ceil(len(panels) / ncols)
@@ -76,6 +78,8 @@ def _Plot(study, rows, path: Path, title: str) -> None:
                 medianprops=dict(color="black"),
                 boxprops=dict(facecolor=color, alpha=0.75),
                 flierprops=dict(marker=".", markersize=4),
+                whiskerprops=dict(color="0.5"),
+                capprops=dict(color="0.5"),
                 manage_ticks=False,
             )
             for x, values in zip(positions, data, strict=True):
@@ -86,13 +90,17 @@ def _Plot(study, rows, path: Path, title: str) -> None:
                         m.value,
                         yerr=[[m.value - m.low], [m.high - m.value]],
                         fmt="none",
-                        ecolor="black",
+                        ecolor=_CI_COLOR,
                         elinewidth=2.0,
                         capsize=3,
                         zorder=5,
                     )
+        if not ax.has_data():
+            ax.text(0.5, 0.5, "no runs", ha="center", transform=ax.transAxes)
         ax.set_xticks(range(len(humans)))
-        ax.set_xticklabels([f"{h} human{'s' if h > 1 else ''}" for h in humans])
+        ax.set_xticklabels(
+            [f"{h} human{'s' if h > 1 else ''}" for h in humans], fontsize=8
+        )
         ax.set_title(panel.title, fontsize=9)
         ax.set_ylabel(panel.ylabel)
         ax.grid(axis="y", alpha=0.3)
@@ -102,11 +110,10 @@ def _Plot(study, rows, path: Path, title: str) -> None:
         plt.Rectangle((0, 0), 1, 1, color=_COLORS[j % len(_COLORS)], alpha=0.75)
         for j in range(len(methods))
     ]
-    fig.legend(handles, methods, loc="lower center", ncol=len(methods), frameon=False)
-    fig.suptitle(
-        f"{title}: median (line, 95 % CI bar), mean (×)",
-        fontsize=10,
-    )
+    handles.append(plt.Line2D([0], [0], color=_CI_COLOR, linewidth=2.0))
+    labels = methods + ["95 % CI of the median"]
+    fig.legend(handles, labels, loc="lower center", ncol=len(labels), frameon=False)
+    fig.suptitle(f"{title}: median (line), mean (×)", fontsize=10)
     fig.tight_layout(rect=(0, 0.06, 1, 0.96))
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -146,12 +153,14 @@ def _PanelTable(study, rows, panel) -> list[str]:
     ]
     for h in _Humans(study, panel.family):
         group = Select(rows, family=panel.family, humans=(h,))
+        if not group:
+            continue
         cells = [
             Median(Select(group, method=m), panel.metric).Format() for m in methods
         ]
         for o in others:
             d = Difference(group, panel.metric, o, first)
-            cells.append(f"{d.Format()} ({d.n})")
+            cells.append(d.Format(with_n=True))
         lines.append(f"| {h} | " + " | ".join(cells) + " |")
     return lines + [""]
 
@@ -222,7 +231,9 @@ def WriteReport(
         "- Medians with percentile-bootstrap 95 % CIs [low, high]; "
         "differences are the mean over seeds of the paired difference (same "
         "cell, seed, variant and people), with a paired bootstrap 95 % CI "
-        "and the number of pairs. Booleans count as 1/0.",
+        "and the number of pairs. Booleans count as 1/0; a run that did not "
+        "reach its goal counts its time limit as navigation time and time to "
+        "goal (a lower bound).",
         "",
     ]
     plot_by_tag = {Path(p).stem.removeprefix(f"{study.name}_"): p for p in plots}
@@ -234,7 +245,8 @@ def WriteReport(
             lines += [f"![{study.name}]({Path(plot).name})", ""]
         lines += ["### Panels", ""]
         for panel in study.panels:
-            lines += _PanelTable(study, group, panel)
+            if Select(group, family=panel.family):
+                lines += _PanelTable(study, group, panel)
         lines += [
             "### Per cell and method",
             "",

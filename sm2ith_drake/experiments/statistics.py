@@ -15,6 +15,9 @@ from scipy import stats
 
 CONFIDENCE = 0.95
 RESAMPLES = 2000
+# Fewer samples (or pairs) than this get no interval: a bootstrap of two or
+# three values says little.
+MIN_SAMPLES = 5
 # A fixed generator seed: a report written twice from the same CSV says the
 # same.
 _SEED = 12
@@ -27,20 +30,23 @@ NOT_DISTINGUISHABLE = "not distinguishable"
 @dataclasses.dataclass(frozen=True)
 class Estimate:
     """A statistic with its bootstrap CI (low, high) over n samples (or
-    pairs). With n < 2 the interval is NaN."""
+    pairs). With n < MIN_SAMPLES the interval is NaN."""
 
     value: float
     low: float
     high: float
     n: int
 
-    def Format(self, digits: int = 3) -> str:
+    def Format(self, digits: int = 3, *, with_n: bool = False) -> str:
+        """ "value [low, high]", with " (n=…)" if asked for or without an
+        interval."""
         if self.n == 0:
             return "–"
         v = f"{self.value:.{digits}g}"
         if math.isnan(self.low):
             return f"{v} (n={self.n})"
-        return f"{v} [{self.low:.{digits}g}, {self.high:.{digits}g}]"
+        ci = f"{v} [{self.low:.{digits}g}, {self.high:.{digits}g}]"
+        return f"{ci} (n={self.n})" if with_n else ci
 
 
 def _Bootstrap(data, statistic, *, paired: bool) -> tuple[float, float]:
@@ -72,21 +78,22 @@ def _MeanDifference(a, b, axis=-1):
 
 def MedianCI(values) -> Estimate:
     """The median of ``values`` (NaNs dropped) with its percentile bootstrap
-    95 % CI."""
+    95 % CI (none below MIN_SAMPLES values)."""
     x = np.asarray(values, dtype=float)
     x = x[~np.isnan(x)]
     if x.size == 0:
         return Estimate(math.nan, math.nan, math.nan, 0)
-    if x.size < 2:
-        return Estimate(float(x[0]), math.nan, math.nan, 1)
+    if x.size < MIN_SAMPLES:
+        return Estimate(float(np.median(x)), math.nan, math.nan, int(x.size))
     low, high = _Bootstrap((x,), _Median, paired=False)
     return Estimate(float(np.median(x)), low, high, int(x.size))
 
 
 def PairedDifference(a, b) -> Estimate:
     """The mean of the paired differences a_i − b_i (pairs with a NaN
-    dropped) with its paired percentile bootstrap 95 % CI: pairs are
-    resampled together, so what the pair shares (the seed's people) cancels.
+    dropped) with its paired percentile bootstrap 95 % CI (none below
+    MIN_SAMPLES pairs): pairs are resampled together, so what the pair
+    shares (the seed's people) cancels.
 
     The mean rather than the median: many of our metrics are 0 in most runs
     (intimate-space time, freezing) or booleans (success), where a median
@@ -101,8 +108,8 @@ def PairedDifference(a, b) -> Estimate:
     if a.size == 0:
         return Estimate(math.nan, math.nan, math.nan, 0)
     value = float(np.mean(a - b))
-    if a.size < 2:
-        return Estimate(value, math.nan, math.nan, 1)
+    if a.size < MIN_SAMPLES:
+        return Estimate(value, math.nan, math.nan, int(a.size))
     low, high = _Bootstrap((a, b), _MeanDifference, paired=True)
     return Estimate(value, low, high, int(a.size))
 
@@ -116,7 +123,7 @@ def Verdict(differences, *, lower_is_better: bool) -> str:
     sign = -1.0 if lower_is_better else 1.0
     better = []
     for d in differences:
-        if d.n < 2 or math.isnan(d.low):
+        if d.n < MIN_SAMPLES or math.isnan(d.low):
             better.append(None)
         elif sign * d.low > 0 and sign * d.high > 0:
             better.append(True)

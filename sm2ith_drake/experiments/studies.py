@@ -163,7 +163,9 @@ STUDIES = {
             Panel("Cup (B≥E): avg. base deviation", "base_path_deviation", "m", "cup"),
             Panel("Cup (B≥E): navigation time", "navigation_time", "s", "cup"),
         ),
-        people=("orca", "instructed"),
+        # 2 × 120 runs ≈ 28 min with --jobs 2; add a people model with
+        # --people.
+        people=("orca",),
         findings=(
             Finding(
                 "(a)",
@@ -228,8 +230,8 @@ STUDIES = {
                 ("avg. human distance", "mean_human_distance", "m"),
             )
         ),
-        # 2 × 120 runs ≈ 35 min with --jobs 2 (README); add a people model
-        # with --people.
+        # 2 × 120 runs ≈ 33 min with --jobs 2 (the budget is 60 min); add a
+        # people model with --people (≈ 33 min more each).
         people=("orca",),
         findings=tuple(
             Finding(
@@ -367,6 +369,8 @@ STUDIES = {
                 ("closest approach (gap)", "min_human_gap", "m"),
             )
         ),
+        # 2 × 240 runs ≈ 70 min with --jobs 2; add a people model with
+        # --people.
         people=("orca",),
         summary=(
             "success",
@@ -375,6 +379,7 @@ STUDIES = {
             "collision",
             "min_human_gap",
             "min_obstacle_clearance",
+            "wall_collision",
             "intimate_space_time_base",
             "intimate_space_time",
             "fallbacks",

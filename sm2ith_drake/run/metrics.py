@@ -296,6 +296,7 @@ CAMPAIGN_METRICS = [
     "min_human_distance",
     "collision",
     "min_obstacle_clearance",
+    "wall_collision",
     *_SUMMARY_COLUMNS,
     "simulated_time",
 ]
@@ -318,12 +319,14 @@ def CampaignRow(log, robot, scenario, metrics: dict, reference_xy=None) -> dict:
     sequence (NaN when it did not complete: a timeout); success is its
     completion within the time limit. Time to goal is the same with a
     sequence, and without one the first time the base is within
-    GOAL_TOLERANCE of its goal. Freezing time, progress share: see
-    FreezingTime, ProgressShare (at the goal: the base within the tolerance
-    of the latest phase that waits for the base task). Distances to people
+    GOAL_TOLERANCE of its goal (then success: it got there). Freezing
+    time, progress share: see FreezingTime, ProgressShare (at the goal: the
+    base within the tolerance of the latest phase that waits for the base
+    task). Distances to people
     are from a human's centre to the nearest robot body (base or any arm
-    link); the gap subtracts the person's radius. Obstacle clearance: any
-    robot capsule to any wall.
+    link); the gap subtracts the person's radius; ``collision``: a person
+    touched. Obstacle clearance: any robot capsule to any wall;
+    ``wall_collision``: it went below 0.
     """
     nan = float("nan")
     row = dict.fromkeys(CAMPAIGN_METRICS, nan)
@@ -366,10 +369,13 @@ def CampaignRow(log, robot, scenario, metrics: dict, reference_xy=None) -> dict:
         row["navigation_time"] = float(times[-1]) if times.size else nan
         if goal_errors is not None:
             row["time_to_goal"] = TimeToGoal(times, goal_errors)
+            row["success"] = not np.isnan(row["time_to_goal"])
     if scenario.obstacles and len(states):
-        row["min_obstacle_clearance"] = ObstacleClearance(
+        clearance = ObstacleClearance(
             robot, states, ObstacleSegments(scenario.obstacles)
         )
+        row["min_obstacle_clearance"] = clearance
+        row["wall_collision"] = bool(clearance < 0.0)
     if log.human_positions:
         dist = HumanDistances(robot, log.states, log.human_positions)
         row["min_human_distance"] = float(dist.min())
