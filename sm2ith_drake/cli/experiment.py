@@ -146,7 +146,7 @@ def AddExperimentCommands(sub) -> None:
         description="Runs a study (cells × variants × people models × "
         "methods × seeds, every method on the same seeds) in parallel, "
         "writes OUT/STUDY.csv (one row per run), OUT/STUDY_VARIANT_PEOPLE.png "
-        "(box plots with the medians' 95 %% CIs), OUT/STUDY_report.md "
+        "(box plots with the medians' 95 % CIs), OUT/STUDY_report.md "
         "(medians and paired differences with bootstrap CIs) and "
         "OUT/findings.md (what holds of the paper's findings). Runs already "
         "in the CSV are skipped, so an interrupted campaign resumes where it "
