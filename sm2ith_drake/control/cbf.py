@@ -124,6 +124,11 @@ class DtCbfGroup(ConstraintGroup):
         # walking into the robot faster than it can get away), the robot does
         # the best it can instead of losing its plan.
         self.slack = layout.AddVariables("cbf_slack", (self.num_rows,))
+        # The rows (and slacks) that keep the robot off the walls.
+        per_step = np.arange(H * C, self.rows_per_step)
+        self.obstacle_rows = (
+            np.arange(N)[:, None] * self.rows_per_step + per_step[None]
+        ).ravel()
         if row_blocks:
             self.rows, self.cols = BlockPattern(row_blocks, col_blocks)
             self.rows = np.concatenate([self.rows, np.arange(self.num_rows)])
