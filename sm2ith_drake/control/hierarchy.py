@@ -160,14 +160,15 @@ class HierarchicalSolver:
         """Whether another pass can be skipped after one that produced z
         (ControllerConfig.rti_iterations): the predicted human actions agree
         with the people's model and the plan keeps the nonlinear safety
-        rows, each within its tolerance. Never with tolerance 0."""
-        if self.rti_prediction_tolerance <= 0:
-            return False
+        rows, each within its tolerance. Never with tolerance 0, nor
+        without people to predict: then every pass is an ordinary SQP
+        iteration on the robot's tasks."""
         predictor = self.program.predictor
-        if predictor is not None:
-            errors = predictor.PredictionErrors(z)
-            if errors.size and errors.max() > self.rti_prediction_tolerance:
-                return False
+        if self.rti_prediction_tolerance <= 0 or predictor is None:
+            return False
+        errors = predictor.PredictionErrors(z)
+        if errors.size and errors.max() > self.rti_prediction_tolerance:
+            return False
         point = self.program.MakePoint(z, targets)
         return self.program.SafetyViolation(point) <= self.rti_constraint_tolerance
 
