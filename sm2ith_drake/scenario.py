@@ -153,6 +153,11 @@ class HumanConfig:
     # The name of a phase of the scenario's ``sequence``: the human stands at
     # its start until the robot enters that phase ("" : from the run's start).
     start_phase: str = ""
+    # One phase name per waypoint, or empty (no gating): the human walks to
+    # waypoint k only once the robot's sequence has entered
+    # waypoint_phases[k], keeping to the waypoint before it (or its start)
+    # until then; "" leaves waypoint k ungated. Not with loop.
+    waypoint_phases: list[str] = field(default_factory=list)
     # instructed: the gap between the robot's nearest body and the person's
     # surface (m) under which the person starts avoiding the robot.
     reaction_distance: float = 1.0

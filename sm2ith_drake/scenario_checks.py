@@ -23,6 +23,7 @@ from sm2ith_drake.scenario import (
     HUMAN_BEHAVIORS,
     PREDICTORS,
     TASK_KINDS,
+    HumanConfig,
     RobotConfig,
     Scenario,
     ScenarioError,
@@ -168,6 +169,33 @@ def _ValidateController(scenario: Scenario) -> None:
         _NonNegative(getattr(c, name), f"controller.{name}")
 
 
+def _ValidateGates(scenario: Scenario, i: int, h: HumanConfig) -> None:
+    """A person's start_phase and waypoint_phases: phases of the sequence,
+    one per waypoint, and not on a looping path (a gate opens once)."""
+    if h.waypoint_phases and len(h.waypoint_phases) != len(h.waypoints):
+        raise ScenarioError(
+            f'humans[{i}].waypoint_phases: one phase name (or "") per '
+            f"waypoint, got {len(h.waypoint_phases)} for "
+            f"{len(h.waypoints)} waypoints"
+        )
+    if h.loop and any(h.waypoint_phases):
+        raise ScenarioError(
+            f"humans[{i}].waypoint_phases with loop: true; a gate opens once, "
+            "so a looping path cannot be gated (list the crossings instead)"
+        )
+    phases = [phase.name for phase in scenario.sequence]
+    valid = ", ".join(repr(n) for n in phases if n) or "none (no sequence)"
+    gates = [("start_phase", h.start_phase)] + [
+        (f"waypoint_phases[{k}]", n) for k, n in enumerate(h.waypoint_phases)
+    ]
+    for name, phase in gates:
+        if phase and phase not in phases:
+            raise ScenarioError(
+                f"humans[{i}].{name} '{phase}' is not a phase of the sequence; "
+                f"valid: {valid}"
+            )
+
+
 def _ValidatePeople(scenario: Scenario) -> None:
     for i, h in enumerate(scenario.humans):
         if h.behavior not in HUMAN_BEHAVIORS:
@@ -182,13 +210,7 @@ def _ValidatePeople(scenario: Scenario) -> None:
         _Positive(h.radius, f"humans[{i}].radius")
         _NonNegative(h.start_time, f"humans[{i}].start_time")
         _Positive(h.reaction_distance, f"humans[{i}].reaction_distance")
-        phases = [phase.name for phase in scenario.sequence]
-        if h.start_phase and h.start_phase not in phases:
-            valid = ", ".join(repr(n) for n in phases if n) or "none (no sequence)"
-            raise ScenarioError(
-                f"humans[{i}].start_phase '{h.start_phase}' is not a phase of "
-                f"the sequence; valid: {valid}"
-            )
+        _ValidateGates(scenario, i, h)
     for i, o in enumerate(scenario.obstacles):
         if len(o.vertices) < 2:
             raise ScenarioError(

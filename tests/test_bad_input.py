@@ -134,6 +134,22 @@ BAD_INPUTS = [
      "humans: [{behavior: instructed, start: [3, 3], waypoints: [[3, -3]], "
      "start_phase: cross}]}",
      ["humans[0].start_phase", "'cross'", "valid: 'go', 'back'"]),
+    ("waypoint_phases_length", "stretch3_reach",
+     "{sequence: [{name: go, targets: {base_position: [1, 0]}}], "
+     "humans: [{behavior: orca, start: [3, 3], waypoints: [[3, -3], [3, 3]], "
+     "waypoint_phases: [go]}]}",
+     ["humans[0].waypoint_phases", "got 1 for 2 waypoints"]),
+    ("waypoint_phases_loop", "stretch3_reach",
+     "{sequence: [{name: go, targets: {base_position: [1, 0]}}], "
+     "humans: [{behavior: orca, start: [3, 3], waypoints: [[3, -3], [3, 3]], "
+     "waypoint_phases: [go, ''], loop: true}]}",
+     ["humans[0].waypoint_phases", "loop: true"]),
+    ("waypoint_phases_unknown", "stretch3_reach",
+     "{sequence: [{name: go, targets: {base_position: [1, 0]}}, "
+     "{name: back, targets: {base_position: [0, 0]}}], "
+     "humans: [{behavior: orca, start: [3, 3], waypoints: [[3, -3], [3, 3]], "
+     "waypoint_phases: ['', cross]}]}",
+     ["humans[0].waypoint_phases[1]", "'cross'", "valid: 'go', 'back'"]),
 ]  # fmt: skip
 
 

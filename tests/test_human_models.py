@@ -10,8 +10,10 @@ from sm2ith_drake.humans.crowd import InitialCrowdState, StepCrowd
 from sm2ith_drake.humans.messages import HumanDetections
 from sm2ith_drake.humans.social_force import social_force_step
 from sm2ith_drake.humans.tracking import HumanTracks
+from sm2ith_drake.planning.sequence import TaskReferences
+from sm2ith_drake.robots import MobileManipulator
 from sm2ith_drake.scenario import HumanConfig
-from sm2ith_drake.systems.humans import HumanEstimator, MocapSensor
+from sm2ith_drake.systems.humans import CrowdSimulator, HumanEstimator, MocapSensor
 
 
 def _Walker(t):
@@ -337,3 +339,120 @@ def test_a_person_starts_when_the_robot_enters_its_phase():
     starts = Run(lambda t: 0 if t < 0.5 - 1e-9 else 3)
     np.testing.assert_allclose(starts, [1.0, 0.5, 0.0], atol=1e-9)
     assert Run(lambda t: None)[:2] == [None, None]
+
+
+def _GatedRun(humans, phase_of_time, steps=300):
+    """(T,) times and (T, H, 2) positions of ``humans`` stepped with the
+    sequence ("go", "cross", "back") in ``phase_of_time(t)``, the robot far
+    away."""
+    state = InitialCrowdState(humans)
+    times, positions = [], []
+    for i in range(steps):
+        t = 0.05 * i
+        state = StepCrowd(
+            humans,
+            state,
+            time=t,
+            dt=0.05,
+            robot_position=[20.0, 20.0],
+            robot_velocity=[0.0, 0.0],
+            robot_radius=0.5,
+            obstacle_segments=np.zeros((0, 2, 2)),
+            tau=2.0,
+            tau_obs=0.5,
+            phases=("go", "cross", "back"),
+            phase_index=phase_of_time(t),
+        )
+        times.append(t + 0.05)
+        positions.append(state.positions)
+    return np.array(times), np.array(positions)
+
+
+@pytest.mark.parametrize("behavior", ["scripted", "orca", "instructed", "social_force"])
+def test_a_gated_waypoint_is_walked_to_only_once_its_phase_is_entered(behavior):
+    """waypoint_phases: person 0 walks to (0, 2) at once, waits there until
+    "cross" is entered (4 s), crosses to (0, 5), waits again until "back"
+    (9 s) and returns to (0, 2); person 1 waits at its start until "cross".
+    With no phase known, no gate opens."""
+    humans = [
+        HumanConfig(
+            behavior=behavior,
+            start=[0, 0],
+            waypoints=[[0, 2], [0, 5], [0, 2]],
+            waypoint_phases=["", "cross", "back"],
+        ),
+        HumanConfig(
+            behavior=behavior,
+            start=[10, 0],
+            waypoints=[[10, 3]],
+            waypoint_phases=["cross"],
+        ),
+    ]
+    times, p = _GatedRun(
+        humans, lambda t: 0 if t < 4.0 - 1e-9 else 1 if t < 9.0 - 1e-9 else 2
+    )
+    a, b = p[:, 0], p[:, 1]
+    before, between, after = times <= 4.0, (times > 4.0) & (times <= 9.0), times > 9.0
+    # Before "cross": person 0 at its first waypoint, not heading on; person
+    # 1 at its start.
+    assert np.max(a[before, 1]) < 2.5
+    assert np.linalg.norm(a[before][-1] - [0, 2]) < 0.3
+    assert np.max(np.linalg.norm(b[before] - [10, 0], axis=1)) < 0.05
+    # "cross": both walk to their gated waypoints, and person 0 waits there
+    # for "back" instead of walking on.
+    assert np.linalg.norm(a[between][-1] - [0, 5]) < 0.3
+    assert np.min(a[between & (times > 8.0), 1]) > 4.7
+    assert np.linalg.norm(b[between][-1] - [10, 3]) < 0.3
+    # "back": person 0 returns.
+    assert np.linalg.norm(a[after][-1] - [0, 2]) < 0.3
+    # No phase known: person 0 never leaves its first waypoint, person 1
+    # never leaves its start.
+    _, p = _GatedRun(humans, lambda t: None)
+    assert np.max(p[:, 0, 1]) < 2.5
+    assert np.max(np.linalg.norm(p[:, 1] - [10, 0], axis=1)) < 0.05
+
+
+def test_the_crowd_context_keeps_when_each_gate_was_entered():
+    """CrowdSimulator: when a gate's phase was entered lives in the crowd's
+    Context (a clone taken before it replays the same crossing), and people
+    with gates need the task_references input."""
+    robot = MobileManipulator("ridgeback_ur10")
+    humans = [
+        HumanConfig(
+            behavior="scripted",
+            start=[5.0, 5.0],
+            waypoints=[[5.0, 6.0], [5.0, 8.0]],
+            waypoint_phases=["", "cross"],
+        )
+    ]
+    system = CrowdSimulator(
+        robot, humans, obstacle_segments=np.zeros((0, 2, 2)), phases=["go", "cross"]
+    )
+    context = system.CreateDefaultContext()
+    x = np.concatenate([robot.default_q, np.zeros(robot.num_velocities)])
+    system.GetInputPort("robot_state").FixValue(context, x)
+    refs = system.GetInputPort("task_references")
+    refs.FixValue(context, TaskReferences(phase_index=0, phase="go"))
+    first = Simulator(system, context)
+    first.AdvanceTo(3.0)
+    truth = system.GetOutputPort("human_truth")
+    assert 5.8 < truth.Eval(context).positions[0, 1] <= 6.0 + 1e-9
+    second = Simulator(system, context.Clone())
+    runs = []
+    for simulator in (first, second):
+        own = simulator.get_mutable_context()
+        refs.FixValue(own, TaskReferences(phase_index=1, phase="cross"))
+        simulator.AdvanceTo(6.0)
+        runs.append(own.get_abstract_state(0).get_value())
+    np.testing.assert_array_equal(runs[0].positions, runs[1].positions)
+    np.testing.assert_array_equal(runs[0].gate_entered, runs[1].gate_entered)
+    # The gate of waypoint 1 opened at the first crowd step after 3 s.
+    assert 3.0 <= runs[0].gate_entered[0, 1] <= 3.05 + 1e-9
+    assert np.isnan(runs[0].gate_entered[0, 0])
+    assert 7.7 < runs[0].positions[0, 1] <= 8.0 + 1e-9
+    with pytest.raises(ValueError, match=r"waypoint_phases\[1\] 'cross'"):
+        CrowdSimulator(robot, humans, obstacle_segments=np.zeros((0, 2, 2)))
+    unconnected = system.CreateDefaultContext()
+    system.GetInputPort("robot_state").FixValue(unconnected, x)
+    with pytest.raises(RuntimeError, match="task_references"):
+        Simulator(system, unconnected).AdvanceTo(0.1)

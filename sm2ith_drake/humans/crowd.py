@@ -36,8 +36,11 @@ The crowd moves with time step Δt_c. Each human has a behaviour:
 
 Any person with a ``start_phase`` stands at its start until the robot's task
 sequence enters that phase; its ``start_time`` then counts from that moment
-(the crowd notices the phase at its first step in it). When the phase was
-entered is part of the CrowdState, so a cloned Context reproduces the run.
+(the crowd notices the phase at its first step in it). Likewise a waypoint
+gated by ``waypoint_phases`` is walked to only once the sequence has entered
+its phase: until then the person keeps to its previous waypoint (or start).
+When each phase was entered is part of the CrowdState, so a cloned Context
+reproduces the run.
 """
 
 from dataclasses import dataclass
@@ -74,6 +77,9 @@ class CrowdState:
     # (H,) when each person's ``start_phase`` was entered (NaN: not yet, or
     # the person has none).
     phase_entered: np.ndarray | None = None
+    # (H, W) when the phase gating each person's waypoint k was entered
+    # (NaN: not yet, or no gate); W: the most waypoints anyone has.
+    gate_entered: np.ndarray | None = None
 
 
 def InitialCrowdState(humans) -> CrowdState:
@@ -84,22 +90,34 @@ def InitialCrowdState(humans) -> CrowdState:
         waypoint=np.zeros(H, dtype=int),
         preferred=np.full((H, 2), np.nan),
         phase_entered=np.full(H, np.nan),
+        gate_entered=np.full(_GateNames(humans).shape, np.nan),
     )
 
 
-def EnterPhases(humans, phase_entered, *, phases, phase_index, time: float):
-    """``phase_entered`` updated at ``time``: a person's start phase counts as
+def _GateNames(humans) -> np.ndarray:
+    """(H, W) the phase gating each person's waypoint k ("": none)."""
+    W = max([len(h.waypoints) for h in humans], default=0)
+    names = np.full((len(humans), W), "", dtype=object)
+    for j, h in enumerate(humans):
+        names[j, : len(h.waypoint_phases)] = h.waypoint_phases
+    return names
+
+
+def EnterPhases(names, entered, *, phases, phase_index, time: float):
+    """``entered`` (the times the phases ``names`` were entered, NaN: not
+    yet; any shape, "" for no phase) updated at ``time``: a phase counts as
     entered once the sequence's ``phase_index`` (``len(phases)`` once
     finished; None: unknown) has reached the phase's first occurrence in
     ``phases``, the sequence's phase names, so a phase shorter than a crowd
-    step is not missed."""
-    entered = np.array(phase_entered, dtype=float)
+    step is not missed. Once entered stays entered."""
+    entered = np.array(entered, dtype=float)
     if phase_index is None:
         return entered
-    for j, h in enumerate(humans):
-        if h.start_phase and np.isnan(entered[j]):
-            if phase_index >= list(phases).index(h.start_phase):
-                entered[j] = time
+    names = np.asarray(names, dtype=object).reshape(entered.shape)
+    for k in np.ndindex(entered.shape):
+        if names[k] and np.isnan(entered[k]):
+            if phase_index >= list(phases).index(names[k]):
+                entered[k] = time
     return entered
 
 
@@ -114,15 +132,22 @@ def StartTimes(humans, phase_entered) -> np.ndarray:
     return starts
 
 
-def PreferredVelocities(humans, state: CrowdState, time: float, start_times=None):
+def PreferredVelocities(
+    humans, state: CrowdState, time: float, start_times=None, gate_entered=None
+):
     """Velocity toward each human's current waypoint (advancing past reached
     waypoints), at its speed, slowing down over the last metre; zero before
-    the person's start time (``start_times``, default: its ``start_time``)."""
+    the person's start time (``start_times``, default: its ``start_time``).
+    A waypoint whose gate is not yet entered (``gate_entered``, default:
+    the state's) is not walked to: the person keeps to the one before it
+    (or its start)."""
     H = len(humans)
     v_pref = np.zeros((H, 2))
     goals = state.positions.copy()
     if start_times is None:
         start_times = [h.start_time for h in humans]
+    if gate_entered is None:
+        gate_entered = state.gate_entered
     for j, h in enumerate(humans):
         if not h.waypoints or time < start_times[j]:
             continue
@@ -130,8 +155,12 @@ def PreferredVelocities(humans, state: CrowdState, time: float, start_times=None
         goal = np.asarray(h.waypoints[w % len(h.waypoints)], dtype=float)
         if np.linalg.norm(goal - state.positions[j]) < WAYPOINT_TOLERANCE:
             if h.loop or w + 1 < len(h.waypoints):
-                state.waypoint[j] = w + 1
-                goal = np.asarray(h.waypoints[(w + 1) % len(h.waypoints)], dtype=float)
+                w = state.waypoint[j] = w + 1
+                goal = np.asarray(h.waypoints[w % len(h.waypoints)], dtype=float)
+        # Gated waypoints are never looped (scenario_checks.py).
+        if w < len(h.waypoint_phases) and h.waypoint_phases[w]:
+            if np.isnan(gate_entered[j, w]):
+                goal = np.asarray(h.waypoints[w - 1] if w else h.start, dtype=float)
         goals[j] = goal
         d = goal - state.positions[j]
         dist = np.linalg.norm(d)
@@ -252,18 +281,22 @@ def StepCrowd(
     PredictionConfig whose relaxed-ORCA model the "relaxed_orca" people
     follow. ``phases``: the names of the robot's task sequence;
     ``phase_index``: the phase it is in (``len(phases)`` once finished;
-    None: unknown, so nobody with a ``start_phase`` starts)."""
+    None: unknown, so nobody with a ``start_phase`` starts and no gated
+    waypoint opens)."""
     H = len(humans)
     p, v = state.positions.copy(), state.velocities.copy()
     radii = np.array([h.radius for h in humans], dtype=float)
-    entered = state.phase_entered
+    names = _GateNames(humans)
+    entered, gates = state.phase_entered, state.gate_entered
     if entered is None:
         entered = np.full(H, np.nan)
-    entered = EnterPhases(
-        humans, entered, phases=phases, phase_index=phase_index, time=time
-    )
+    if gates is None:
+        gates = np.full(names.shape, np.nan)
+    when = dict(phases=phases, phase_index=phase_index, time=time)
+    entered = EnterPhases([h.start_phase for h in humans], entered, **when)
+    gates = EnterPhases(names, gates, **when)
     start_times = StartTimes(humans, entered)
-    v_pref, goals = PreferredVelocities(humans, state, time, start_times)
+    v_pref, goals = PreferredVelocities(humans, state, time, start_times, gates)
     robot_position = np.asarray(robot_position, dtype=float)[:2]
     robot_velocity = np.asarray(robot_velocity, dtype=float)[:2]
     new_v = np.zeros((H, 2))
@@ -354,6 +387,7 @@ def StepCrowd(
         waypoint=state.waypoint.copy(),
         preferred=preferred,
         phase_entered=entered,
+        gate_entered=gates,
     )
 
 

@@ -34,8 +34,9 @@ class CrowdSimulator(LeafSystem):
     HumanIntents, for the predictor's simulation-only input) the preferred
     velocities of the people who walk as the prediction model says (NaN for the rest).
     ``task_references`` (the TaskPlanner's) tells where the robot's task
-    sequence is; people with a ``start_phase`` need it connected. When each
-    one's phase was entered is kept in the crowd's abstract state.
+    sequence is; people with a ``start_phase`` or ``waypoint_phases`` need
+    it connected. When each of their phases was entered is kept in the
+    crowd's abstract state.
     """
 
     def __init__(
@@ -52,19 +53,27 @@ class CrowdSimulator(LeafSystem):
     ):
         """``model``: the PredictionConfig that "relaxed_orca" people follow;
         ``phases``: the names of the task sequence's phases, in order (the
-        ``start_phase`` of a person must be one of them)."""
+        ``start_phase`` and ``waypoint_phases`` of a person must be among
+        them)."""
         super().__init__()
         self._model = model
         self._robot = robot
         self._humans = list(humans)
         self._phases = tuple(phases)
+        self._needs_phase = False
         for j, h in enumerate(self._humans):
-            if h.start_phase and h.start_phase not in self._phases:
-                raise ValueError(
-                    f"humans[{j}].start_phase '{h.start_phase}' is not a phase "
-                    f"of the sequence {list(self._phases)}"
-                )
-        self._needs_phase = any(h.start_phase for h in self._humans)
+            gates = {"start_phase": h.start_phase}
+            gates.update(
+                (f"waypoint_phases[{k}]", name)
+                for k, name in enumerate(h.waypoint_phases)
+            )
+            for field_name, name in gates.items():
+                if name and name not in self._phases:
+                    raise ValueError(
+                        f"humans[{j}].{field_name} '{name}' is not a phase "
+                        f"of the sequence {list(self._phases)}"
+                    )
+                self._needs_phase |= bool(name)
         self._segments = np.asarray(obstacle_segments, dtype=float).reshape(-1, 2, 2)
         self._dt = float(time_step)
         self._tau, self._tau_obs = tau, tau_obs
@@ -99,8 +108,9 @@ class CrowdSimulator(LeafSystem):
             phase_index = self._references.Eval(context).phase_index
         elif self._needs_phase:
             raise RuntimeError(
-                "CrowdSimulator: people with a start_phase need the "
-                "task_references input connected (the TaskPlanner's output)"
+                "CrowdSimulator: people with a start_phase or waypoint_phases "
+                "need the task_references input connected (the TaskPlanner's "
+                "output)"
             )
         new = StepCrowd(
             self._humans,
