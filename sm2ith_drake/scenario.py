@@ -88,8 +88,9 @@ class ControllerConfig:
     # does at the plan's states (the KKT embedding), or the plan violates
     # the nonlinear barrier or self-collision rows by more than
     # rti_constraint_tolerance (their QPs kept only the linearizations).
-    # rti_prediction_tolerance 0: always run every pass. Deterministic (no
-    # clock), so a cloned Context reproduces the run.
+    # rti_prediction_tolerance 0, or no people to predict: every pass runs
+    # (an ordinary SQP). Deterministic (no clock), so a cloned Context
+    # reproduces the run.
     rti_iterations: int = 1
     rti_prediction_tolerance: float = 5e-3
     rti_constraint_tolerance: float = 1e-3
