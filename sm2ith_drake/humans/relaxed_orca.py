@@ -277,10 +277,10 @@ def relaxed_orca_actions(
 
     The same damped Newton as relaxed_orca_action on the unconstrained reduced
     problem f(a), compiled and run row by row (2×2 solves in closed form,
-    Armijo backtracking; humans/kernels.py). The rare rows whose unconstrained minimizer leaves the
-    speed disc or a static half-plane are handed to relaxed_orca_action, so
-    they are exact too. Elsewhere λ_s = λ_o = 0 and the stationarity residual
-    is ‖∇f(a)‖.
+    Armijo backtracking; humans/kernels.py). The rare rows whose
+    unconstrained minimizer leaves the speed disc or a static half-plane are
+    handed to relaxed_orca_action, so they are exact too. Elsewhere
+    λ_s = λ_o = 0 and the stationarity residual is ‖∇f(a)‖.
 
     Args:
         v_pref: preferred velocities (B, 2).
@@ -306,6 +306,7 @@ def relaxed_orca_actions(
         no = np.asarray(static_normals, dtype=float).reshape(B, S, 2)
     Ma, Mv = (float(w) for w in slack_weights)
     r_acc_sq = (time_step * max_accel) ** 2
+
     def slacks(a):
         e = a - v_t
         za = np.maximum(0.0, np.einsum("bk,bk->b", e, e) - r_acc_sq)

@@ -26,8 +26,8 @@ from sm2ith_drake.control.prediction.slots import (
     AssignSlots,
     DefaultNeighbors,
     FilterPreferredVelocities,
-    PredictorState,
     PredictedNow,
+    PredictorState,
     SelectNeighbors,
     UpdateGuards,
 )
