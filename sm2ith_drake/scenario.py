@@ -256,8 +256,9 @@ class SafetyConfig:
     # from the last plan's prediction for them by more than guard_deviation
     # (m) at a control step, for the guard_hold (s) after it. People who
     # move as predicted keep the interactive prediction alone, so the guard
-    # does not turn SM²ITH into CVMM; React predicts nothing and is never
-    # guarded. 0: every person, always (the guard of earlier versions).
+    # does not turn SM²ITH into CVMM. React predicts nothing and CVMM's
+    # prediction already is the guard's motion, so neither is guarded.
+    # 0: every person, always (the guard of earlier versions).
     guard_deviation: float = 0.05
     guard_hold: float = 1.0
     # "safe": the shipped safety mechanism on top of the paper's DT-CBF (the

@@ -132,7 +132,10 @@ class HumanPredictorModel:
                         slots, neighbors, robot
                     )
         guards = {}
-        if cfg.predictor != "react":  # React predicts nothing to contradict
+        # React predicts nothing to contradict; CVMM's prediction already is
+        # the guard's constant-velocity motion (a second, identical barrier
+        # row would only double its penalty).
+        if cfg.predictor == "orca_kkt":
             guards = UpdateGuards(
                 state.guard_steps,
                 estimate,
