@@ -273,3 +273,23 @@ def test_second_rti_pass_runs_exactly_when_predictions_have_not_converged():
         duration=2.0,
     )
     assert {r.passes for r in always.log.records if r.mode == "solved"} == {2}
+
+
+@pytest.mark.parametrize("predictor", ["cvmm", "react"])
+def test_safety_variants_are_one_controller_without_interactive_prediction(predictor):
+    """Only SM²ITH's prediction is guarded: CVMM and React run bit for bit
+    the same in the `safe` and `paper` variants (a study's variant
+    comparison changes nothing else)."""
+    crossing = GetDiagramsDir() / "crossing.scenarios.yaml"
+    runs = [
+        _run(
+            "crossing_stretch3_2h",
+            f"{{prediction: {{predictor: {predictor}}}, safety: {{mode: {mode}}}}}",
+            filename=crossing,
+            duration=3.0,
+        )[1]
+        for mode in ("safe", "paper")
+    ]
+    np.testing.assert_array_equal(
+        np.asarray(runs[0].log.states), np.asarray(runs[1].log.states)
+    )

@@ -123,9 +123,15 @@ class MpcProgram:
                 human_margin=safety.human_margin,
                 obstacle_segments=segments,
                 obstacle_margin=safety.obstacle_margin,
+                # Only SM²ITH's interactive prediction is ever guarded
+                # (SafetyConfig.guard_deviation): without it the rows are
+                # left out, so CVMM and React are the same controller in
+                # both safety variants.
                 guard_steps=(
                     safety.guard_steps
-                    if predictor is not None and safety.mode == "safe"
+                    if predictor is not None
+                    and predictor.name == "orca_kkt"
+                    and safety.mode == "safe"
                     else 0
                 ),
             )
