@@ -280,7 +280,9 @@ def test_predictions_are_interactive():
     assert np.max(np.linalg.norm(toward - away, axis=1)) > 0.05
     cv_toward = _PredictedHuman("cvmm", [4.0, 0.0])
     cv_away = _PredictedHuman("cvmm", [-4.0, 0.0])
-    np.testing.assert_allclose(cv_toward, cv_away, atol=1e-9)
+    # Pinned by equal bounds, which the interior-point QP meets to its
+    # tolerance (differences of ~1e-8 between plans), against > 5 cm above.
+    np.testing.assert_allclose(cv_toward, cv_away, atol=1e-6)
 
 
 def test_agent_half_planes_are_symmetric_for_reciprocal_pairs():
