@@ -292,7 +292,6 @@ def test_a_person_starts_when_the_robot_enters_its_phase():
     """start_phase: standing still until the sequence enters the phase, then
     start_time after it; a phase skipped within one crowd step still counts;
     with no phase known (None), nobody with a start_phase moves."""
-    phases = ("go", "cross", "back")
     humans = [
         HumanConfig(
             behavior="scripted",
@@ -308,29 +307,13 @@ def test_a_person_starts_when_the_robot_enters_its_phase():
     ]
 
     def Run(phase_of_time):
-        state = InitialCrowdState(humans)
-        moved, times = [], []
-        for i in range(80):
-            t = 0.05 * i
-            new = StepCrowd(
-                humans,
-                state,
-                time=t,
-                dt=0.05,
-                robot_position=[20.0, 20.0],
-                robot_velocity=[0.0, 0.0],
-                robot_radius=0.5,
-                obstacle_segments=np.zeros((0, 2, 2)),
-                tau=2.0,
-                tau_obs=0.5,
-                phases=phases,
-                phase_index=phase_of_time(t),
-            )
-            moved.append(np.any(new.positions != state.positions, axis=1))
-            times.append(t)
-            state = new
-        times = np.array(times)
-        return [times[np.argmax(m)] if np.any(m) else None for m in np.array(moved).T]
+        """The time each person first moves (None: never)."""
+        times, positions = _GatedRun(humans, phase_of_time, steps=80)
+        start = InitialCrowdState(humans).positions
+        before = np.concatenate([start[None], positions[:-1]])
+        moved = np.any(positions != before, axis=2)  # (T, H)
+        step_start = times - 0.05
+        return [step_start[np.argmax(m)] if np.any(m) else None for m in moved.T]
 
     # "cross" entered at 1.0 s, "back" (index 2) jumped to at 2.0 s.
     starts = Run(lambda t: 0 if t < 1.0 - 1e-9 else 1 if t < 2.0 - 1e-9 else 2)
