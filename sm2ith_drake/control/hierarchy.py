@@ -13,6 +13,7 @@ that every later stage must keep (eq. stmpc_lex_constr). Two stage solvers:
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 
@@ -117,13 +118,21 @@ class HierarchicalSolver:
         passes_run = 0
         results: list[StageResult] = []
         success, status, iterations = True, "solved", 0
+        # The LinearizationPoint of the current z's robot plan, if the pass
+        # rule has made one (its kinematics are reused, not recomputed).
+        checked = None
         for it in range(passes):
             if it > 0 and program.predictor is not None:
                 # The next linearization point: this pass's robot plan with
                 # the humans' exact responses to it (see Predictor.Restore).
                 z = z.copy()
                 program.predictor.Restore(z)
-            point = program.MakePoint(z, targets)
+            if checked is not None:
+                # Restore changed the people's variables only.
+                point = dataclasses.replace(checked, z=z)
+            else:
+                point = program.MakePoint(z, targets)
+            checked = None
             z_pass, ok, why, pass_results = self._SolveHierarchy(point, lower, upper)
             if iterations >= 0 and all(r.iterations >= 0 for r in pass_results):
                 iterations += sum(r.iterations for r in pass_results)
@@ -135,10 +144,12 @@ class HierarchicalSolver:
                 break
             z, results, status = z_pass, pass_results, why
             passes_run = it + 1
-            if it + 1 < passes and self._Converged(z, targets):
-                break
+            if it + 1 < passes:
+                converged, checked = self._Converged(z, targets)
+                if converged:
+                    break
         q, nu, u = program.layout.Split(z)
-        kin = program.robot.CalcKinematics(q)
+        kin = checked.kin if checked is not None else program.robot.CalcKinematics(q)
         predictor = program.predictor
         return MpcSolution(
             human_predictions=None if predictor is None else predictor.Predictions(z),
@@ -156,21 +167,23 @@ class HierarchicalSolver:
             passes=passes_run,
         )
 
-    def _Converged(self, z, targets) -> bool:
+    def _Converged(self, z, targets):
         """Whether another pass can be skipped after one that produced z
         (ControllerConfig.rti_iterations): the predicted human actions agree
         with the people's model and the plan keeps the nonlinear safety
         rows, each within its tolerance. Never with tolerance 0, nor
         without people to predict: then every pass is an ordinary SQP
-        iteration on the robot's tasks."""
+        iteration on the robot's tasks. Returns (converged, the
+        LinearizationPoint of z if the safety check made one)."""
         predictor = self.program.predictor
         if self.rti_prediction_tolerance <= 0 or predictor is None:
-            return False
+            return False, None
         errors = predictor.PredictionErrors(z)
         if errors.size and errors.max() > self.rti_prediction_tolerance:
-            return False
+            return False, None
         point = self.program.MakePoint(z, targets)
-        return self.program.SafetyViolation(point) <= self.rti_constraint_tolerance
+        violation = self.program.SafetyViolation(point)
+        return violation <= self.rti_constraint_tolerance, point
 
     def _SolveHierarchy(self, point, lower, upper):
         """One pass of every stage at one linearization point."""
