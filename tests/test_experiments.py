@@ -16,7 +16,7 @@ from sm2ith_drake.experiments.campaign import (
     RunCampaign,
     RunOne,
 )
-from sm2ith_drake.experiments.findings import FindingRows
+from sm2ith_drake.experiments.findings import CONTACT_FREE_SUCCESS, FindingRows, Value
 from sm2ith_drake.experiments.people import (
     ApplyPeopleModel,
     DoorwayPeople,
@@ -606,3 +606,40 @@ def test_findings_table_of_synthetic_rows():
         and e["metric"] == "base_path_deviation"
     )
     assert b["verdict"] in (NOT_DISTINGUISHABLE, DOES_NOT_HOLD)
+
+
+def test_contact_free_success_and_the_doorway_finding():
+    """A run counts as a contact-free success only when it reached the goal
+    and touched nobody; with SM²ITH contact-free on every seed where CVMM
+    and React touch someone, the doorway finding on it holds, while the one
+    on success alone (all reach) is not distinguishable."""
+    assert Value({"success": True, "collision": False}, CONTACT_FREE_SUCCESS) == 1.0
+    assert Value({"success": True, "collision": True}, CONTACT_FREE_SUCCESS) == 0.0
+    assert Value({"success": False, "collision": False}, CONTACT_FREE_SUCCESS) == 0.0
+    assert math.isnan(Value({"success": True}, CONTACT_FREE_SUCCESS))
+    rows = [
+        {
+            "status": "ok",
+            "family": "stretch3",
+            "scenario": "doorway_stretch3",
+            "humans": h,
+            "seed": seed,
+            "method": method,
+            "variant": "safe",
+            "people": "orca",
+            "success": True,
+            "collision": method != "SM2ITH",
+        }
+        for h in (1, 2)
+        for seed in range(5)
+        for method in ("SM2ITH", "CVMM", "React")
+    ]
+    entries = [
+        e for e in FindingRows(STUDIES["doorway"], rows) if e["robot"] == "stretch3"
+    ]
+    verdicts = {e["metric"]: e["verdict"] for e in entries}
+    assert verdicts == {
+        "success": NOT_DISTINGUISHABLE,
+        CONTACT_FREE_SUCCESS: HOLDS,
+    }
+    assert all(d.n == 10 for e in entries for _, d in e["comparisons"])

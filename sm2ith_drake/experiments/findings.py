@@ -24,10 +24,20 @@ from sm2ith_drake.experiments.statistics import (
 # Times that are NaN when the goal was not reached: then the time limit.
 _CENSORED = ("navigation_time", "time_to_goal")
 
+# A metric derived from two columns: the run succeeded and touched nobody
+# (a doorway crossed by pushing into people is not a success for a
+# controller meant to be safe among them).
+CONTACT_FREE_SUCCESS = "contact_free_success"
+
 
 def Value(row: dict, metric: str) -> float:
     """A row's metric as a float (booleans 1/0, missing NaN; a time to a
     goal never reached: the run's simulated time, its time limit)."""
+    if metric == CONTACT_FREE_SUCCESS:
+        success, contact = row.get("success"), row.get("collision")
+        if not isinstance(success, bool) or not isinstance(contact, bool):
+            return math.nan
+        return float(success and not contact)
     v = row.get(metric, math.nan)
     if metric in _CENSORED and _Nan(v) and row.get("success") is False:
         v = row.get("simulated_time", math.nan)

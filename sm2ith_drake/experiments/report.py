@@ -13,6 +13,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from sm2ith_drake.experiments.findings import (
+    CONTACT_FREE_SUCCESS,
     Axes,
     Difference,
     FindingRows,
@@ -27,7 +28,7 @@ from sm2ith_drake.experiments.statistics import MedianCI
 # colour of the medians' CI bars.
 _COLORS = ["#0072B2", "#E69F00", "#009E73", "#CC79A7", "#56B4E9"]
 _CI_COLOR = "#D55E00"
-_BOOLEAN = ("success", "collision", "wall_collision")
+_BOOLEAN = ("success", "collision", "wall_collision", CONTACT_FREE_SUCCESS)
 
 
 def _Values(rows, family, humans, method, metric):
@@ -133,10 +134,11 @@ def MakePlots(study, rows, out_dir) -> list[Path]:
 
 
 def _Rate(rows, key) -> str:
-    values = [r.get(key) for r in rows if isinstance(r.get(key), bool)]
+    values = [Value(r, key) for r in rows]
+    values = [v for v in values if not math.isnan(v)]
     if not values:
         return "–"
-    return f"{sum(values)}/{len(values)}"
+    return f"{int(sum(values))}/{len(values)}"
 
 
 def _PanelTable(study, rows, panel) -> list[str]:

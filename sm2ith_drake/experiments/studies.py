@@ -372,8 +372,28 @@ STUDIES = {
         # 2 × 240 runs ≈ 70 min with --jobs 2; add a people model with
         # --people.
         people=("orca",),
+        # Issue 12's target, pooled over the numbers of people (pairs within
+        # each cell): SM²ITH reaches the goal, and reaches it without
+        # touching anyone, more often than CVMM and React.
+        findings=tuple(
+            Finding(
+                "doorway",
+                f"{label}: SM²ITH {what} more often than CVMM and React",
+                robot,
+                metric,
+                "SM2ITH",
+                ("CVMM", "React"),
+                lower_is_better=False,
+            )
+            for robot, label in _ROBOTS
+            for what, metric in (
+                ("reaches the goal", "success"),
+                ("reaches the goal without contact", "contact_free_success"),
+            )
+        ),
         summary=(
             "success",
+            "contact_free_success",
             "time_to_goal",
             "freezing_time",
             "collision",
