@@ -254,6 +254,7 @@ def _ValidatePeople(scenario: Scenario) -> None:
         raise ScenarioError(f"safety.guard_steps must be ≥ 0, got {s.guard_steps}")
     _NonNegative(s.guard_deviation, "safety.guard_deviation")
     _NonNegative(s.guard_hold, "safety.guard_hold")
+    _NonNegative(s.guard_gap, "safety.guard_gap")
     _NonNegative(s.human_margin, "safety.human_margin")
     _NonNegative(s.obstacle_margin, "safety.obstacle_margin")
     _Positive(s.human_radius, "safety.human_radius")

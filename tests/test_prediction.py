@@ -584,3 +584,57 @@ def test_guard_holds_exactly_the_people_who_deviate_from_the_last_plan():
     assert UpdateGuards(guards, on_track, predicted, deviation=0.05, hold_steps=3) == {}
     everyone = UpdateGuards({}, on_track, {}, deviation=0.0, hold_steps=2)
     assert everyone == {7: 2, 9: 2, 11: 2}
+    # Within the guard gap of the robot: held whatever the prediction says.
+    close = UpdateGuards(
+        {}, on_track, predicted, deviation=0.05, hold_steps=3, close=[11]
+    )
+    assert close == {11: 3}
+
+
+def test_guard_holds_the_people_inside_the_guard_gap():
+    """HumanPredictorModel: with guard_gap 0.1 m a person measured 0.05 m
+    from the robot's nearest body is guarded even with no plan to judge
+    them against, a person 0.5 m away is not; guard_gap 0 or a non-finite
+    robot state guards nobody."""
+    from sm2ith_drake.control.prediction.predict import HumanPredictorModel
+    from sm2ith_drake.humans.robot_view import HumanDistances
+
+    robot = MobileManipulator("stretch3")
+    q0 = np.asarray(robot.default_q, dtype=float)
+
+    def Gap(x):
+        return HumanDistances(robot, q0[None], np.array([[[x, 0.0]]]))[0, 0] - 0.3
+
+    def At(gap):  # the point on the base's x axis with this gap (bisection)
+        lo, hi = 0.0, 5.0
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if Gap(mid) < gap else (lo, mid)
+        return [lo, 0.0]
+
+    estimate = HumanEstimate(
+        ids=np.array([4, 5]),
+        positions=np.array([At(0.05), [At(0.5)[0], 0.0]]),
+        velocities=np.zeros((2, 2)),
+    )
+
+    def Guards(guard_gap, q):
+        model = HumanPredictorModel(
+            PredictionConfig(predictor="orca_kkt", max_humans=2),
+            horizon=10,
+            time_step=0.2,
+            control_period=0.2,
+            robot=robot,
+            guard_deviation=0.05,
+            guard_hold=1.0,
+            guard_gap=guard_gap,
+        )
+        prediction, state = model.Predict(
+            model.InitialState(), estimate=estimate, q0=q, nu0=np.zeros(3)
+        )
+        assert state.guard_steps == prediction.guard_steps_by_id
+        return prediction.guard_steps_by_id
+
+    assert Guards(0.1, q0) == {4: 5}
+    assert Guards(0.0, q0) == {}
+    assert Guards(0.1, np.full_like(q0, np.nan)) == {}

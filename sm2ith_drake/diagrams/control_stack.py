@@ -145,6 +145,7 @@ def AddControlStack(
                 with_intents=with_intents,
                 guard_deviation=scenario.safety.guard_deviation,
                 guard_hold=scenario.safety.guard_hold,
+                guard_gap=scenario.safety.guard_gap,
             ),
         )
         builder.Connect(

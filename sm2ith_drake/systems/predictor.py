@@ -59,10 +59,12 @@ class HumanPredictor(LeafSystem):
         with_intents: bool = False,
         guard_deviation: float = 0.0,
         guard_hold: float = 0.0,
+        guard_gap: float = 0.0,
     ):
         """``config`` is a PredictionConfig; ``horizon`` and ``time_step``
         the MPC's; ``with_intents`` declares the ``human_intents`` input;
-        ``guard_deviation``, ``guard_hold`` as in SafetyConfig."""
+        ``guard_deviation``, ``guard_hold``, ``guard_gap`` as in
+        SafetyConfig."""
         super().__init__()
         self.model = HumanPredictorModel(
             config,
@@ -74,6 +76,7 @@ class HumanPredictor(LeafSystem):
             human_radius=human_radius,
             guard_deviation=guard_deviation,
             guard_hold=guard_hold,
+            guard_gap=guard_gap,
         )
         n, m = robot.num_positions, robot.num_velocities
         self._n = n

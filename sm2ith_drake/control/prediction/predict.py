@@ -34,6 +34,7 @@ from sm2ith_drake.control.prediction.slots import (
 from sm2ith_drake.control.profiling import PROFILER
 from sm2ith_drake.control.robot_groups import Rollout
 from sm2ith_drake.humans.messages import HumanEstimate, HumanIntents, HumanPrediction
+from sm2ith_drake.humans.robot_view import HumanDistances
 from sm2ith_drake.scenario import PREDICTORS
 
 
@@ -52,10 +53,12 @@ class HumanPredictorModel:
         human_radius: float = 0.3,
         guard_deviation: float = 0.0,
         guard_hold: float = 0.0,
+        guard_gap: float = 0.0,
     ):
         """``config`` is a PredictionConfig; ``horizon``, ``time_step`` are
-        the MPC's; ``obstacles`` (S, 2, 2) wall segments; ``guard_deviation``
-        and ``guard_hold`` as in SafetyConfig (whom the MPC's guard holds)."""
+        the MPC's; ``obstacles`` (S, 2, 2) wall segments; ``guard_deviation``,
+        ``guard_hold`` and ``guard_gap`` as in SafetyConfig (whom the MPC's
+        guard holds)."""
         if config.predictor not in PREDICTORS:
             raise ValueError(f"unknown predictor '{config.predictor}'")
         self.config = config
@@ -67,6 +70,8 @@ class HumanPredictorModel:
         self._alpha = 1.0 if tau <= 0 else control_period / (tau + control_period)
         self.control_period = control_period
         self.guard_deviation = float(guard_deviation)
+        self.guard_gap = float(guard_gap)
+        self.human_radius = float(human_radius)
         self.guard_hold_steps = max(1, int(np.ceil(guard_hold / control_period - 1e-9)))
         self.orca = None
         num_neighbors = 0
@@ -142,6 +147,7 @@ class HumanPredictorModel:
                 PredictedNow(last_solution, self.control_period, self.dt),
                 deviation=self.guard_deviation,
                 hold_steps=self.guard_hold_steps,
+                close=self._Close(estimate, q0),
             )
         guarded = np.array([int(i) in guards for i in slots.slot_ids], dtype=bool)
         prediction = HumanPrediction(
@@ -162,6 +168,28 @@ class HumanPredictorModel:
         )
         prediction.compute_time = time.perf_counter() - start
         return prediction, NextState(prediction)
+
+    def _Close(self, estimate, q0) -> list:
+        """The ids of the people measured within guard_gap of the robot's
+        nearest body at q0 (none without a finite q0 or with guard_gap 0)."""
+        if self.guard_gap <= 0 or estimate is None or q0 is None:
+            return []
+        q0 = np.asarray(q0, dtype=float)
+        positions = np.asarray(estimate.positions, dtype=float).reshape(-1, 2)
+        if not len(positions) or not np.all(np.isfinite(q0)):
+            return []
+        finite = np.all(np.isfinite(positions), axis=1)
+        gaps = np.full(len(positions), np.inf)
+        if np.any(finite):
+            gaps[finite] = (
+                HumanDistances(self.robot, q0[None], positions[None, finite])[0]
+                - self.human_radius
+            )
+        return [
+            int(i)
+            for i, g in zip(estimate.ids, gaps, strict=True)
+            if g < self.guard_gap
+        ]
 
     def _RobotTrajectory(self, q0, nu0, inputs):
         """The RobotView of the robot's warm start, or None."""

@@ -152,12 +152,16 @@ def UpdateGuards(
     *,
     deviation: float,
     hold_steps: int,
+    close=(),
 ) -> dict:
     """Control steps each tracked human stays guarded (SafetyConfig), by id:
     ``hold_steps`` from a step where their measured position is more than
     ``deviation`` from ``predicted`` (id → the position the last plan
-    predicted for now; people it did not predict are not judged), counting
-    down otherwise; every person, always, with deviation 0."""
+    predicted for now; people it did not predict are not judged) or where
+    they are in ``close`` (the ids measured within SafetyConfig.guard_gap of
+    the robot), counting down otherwise; every person, always, with
+    deviation 0."""
+    close = {int(i) for i in close}
     if estimate is None:
         return {}
     out = {}
@@ -165,7 +169,7 @@ def UpdateGuards(
         hid = int(hid)
         left = max(previous.get(hid, 0) - 1, 0)
         expected = predicted.get(hid)
-        if deviation <= 0:
+        if deviation <= 0 or hid in close:
             left = hold_steps
         elif (
             expected is not None
