@@ -268,9 +268,10 @@ class SafetyConfig:
     # has them give way. A person who keeps not yielding by less than
     # guard_deviation per step is otherwise never held, and the plan can
     # creep into them (the doorway study: 36 cm in one run). With 0.1 that
-    # run's contact was 6.7 cm, but in a first check 2 of 13 doorway runs
-    # that had reached the goal no longer did; not yet the default
-    # (README, "Contact in the safe variant").
+    # run's contact was 6.7 cm, but in a first check on 20 doorway runs 2
+    # that had reached the goal no longer did (2 others now did) and no
+    # fewer touched anyone; not yet the default (README, "Contact in the
+    # safe variant").
     guard_gap: float = 0.0
     # "safe": the shipped safety mechanism on top of the paper's DT-CBF (the
     # guard above); "paper": the paper's formulation, the DT-CBF against the
