@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 
+from sm2ith_drake.experiments.findings import CONTACT_FREE_SUCCESS
 from sm2ith_drake.experiments.people import AS_SCENARIO, DoorwayPeople
 
 
@@ -388,12 +389,12 @@ STUDIES = {
             for robot, label in _ROBOTS
             for what, metric in (
                 ("reaches the goal", "success"),
-                ("reaches the goal without contact", "contact_free_success"),
+                ("reaches the goal without contact", CONTACT_FREE_SUCCESS),
             )
         ),
         summary=(
             "success",
-            "contact_free_success",
+            CONTACT_FREE_SUCCESS,
             "time_to_goal",
             "freezing_time",
             "collision",
