@@ -357,38 +357,6 @@ class MobileManipulator:
             out[1, 2] = c * nu[0]
         return out
 
-    def VelocityMapPatterns(self) -> tuple[np.ndarray, np.ndarray]:
-        """The structural nonzeros of G(q) (n, m) and of ∂(G(q)ν)/∂q (n, n)."""
-        n, m = self.num_positions, self.num_velocities
-        G = np.zeros((n, m), dtype=bool)
-        if self.base_kind == "holonomic":
-            G[:2, :2] = True
-            G[2, 2] = True
-            G[3:, 3:] = np.eye(n - 3, dtype=bool)
-        else:
-            G[:2, 0] = True
-            G[2, 1] = True
-            G[3:, 2:] = np.eye(n - 3, dtype=bool)
-        dG = np.zeros((n, n), dtype=bool)
-        dG[:2, 2] = True
-        return G, dG
-
-    def _JointMask(self, slots) -> np.ndarray:
-        """(len(slots), n): the entries of q that move any of the bodies in
-        each row of ``slots``."""
-        plant = self._ancestors[np.asarray(slots)]
-        plant = plant.reshape(plant.shape[0], -1, plant.shape[-1]).any(axis=1)
-        return (plant.astype(float) @ np.abs(self.plant_positions_from_q)) > 0
-
-    def CapsuleJointMasks(self) -> np.ndarray:
-        """(C, n) bool: the entries of q that move capsule c (either end);
-        its points' Jacobians are zero in the other columns."""
-        return self._JointMask(self._capsule_slots)
-
-    def EndEffectorJointMask(self) -> np.ndarray:
-        """(n,) bool: the entries of q that move the end effector."""
-        return self._JointMask([[self._ee_slot]])[0]
-
     def CalcKinematics(self, qs: np.ndarray) -> Kinematics:
         """End-effector and capsule kinematics at the K rows of ``qs``."""
         qs = np.atleast_2d(np.asarray(qs, dtype=float))

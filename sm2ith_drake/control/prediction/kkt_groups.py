@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sm2ith_drake.control.groups import ConstraintGroup
+from sm2ith_drake.control.groups import BlockPattern, ConstraintGroup
 from sm2ith_drake.robots.planar_base import NumBaseVelocities
 
 
@@ -91,10 +91,6 @@ class KktBlocks:
         self.iq = self.inb + 4 * pred.num_neighbors
         self.inu = self.iq + self.n
         self.width = self.inu + self.nb
-        # The base velocities that move the base in the plane (a holonomic
-        # base's ω does not): the only ν columns a half-plane depends on.
-        G, _ = pred.robot.VelocityMapPatterns()
-        self.planar_nu = G[:2, : self.nb].any(axis=0)
         self.groups = []
         self._cache = None
         self.columns = self._Columns()
@@ -199,16 +195,16 @@ class KktEqualities(ConstraintGroup):
         self.num_kkt = N * H * 2
         self.num_rows = self.num_kkt + N * H * 2
         b = blocks
-        # Stationarity component d depends on a_d (not the other component),
-        # every λ and the whole local state (ν only where it moves the base).
+        # Stationarity depends on a, every λ and the whole local state.
         self.mask = np.ones((2, b.width), dtype=bool)
-        self.mask[:, 0:2] = np.eye(2, dtype=bool)
-        self.mask[:, b.inu :] = b.planar_nu
-        # Dynamics, per component: p_{k+1}, p_k, a_k.
-        self._dyn_rows = np.repeat(self.num_kkt + np.arange(N * H * 2), 3)
-        self._dyn_cols = np.stack(
-            [pred.p[1:].ravel(), pred.p[:-1].ravel(), pred.a.ravel()], axis=1
-        ).ravel()
+        row_blocks, col_blocks = [], []
+        for k in range(N):
+            for j in range(H):
+                row_blocks.append(self.num_kkt + (k * H + j) * 2 + np.arange(2))
+                col_blocks.append(
+                    np.concatenate([pred.p[k + 1, j], pred.p[k, j], pred.a[k, j]])
+                )
+        self._dyn_rows, self._dyn_cols = BlockPattern(row_blocks, col_blocks)
         blocks.groups.append(self)
         self.UpdatePattern()
 
@@ -243,7 +239,8 @@ class KktEqualities(ConstraintGroup):
         # Dynamics p_{k+1} − p_k − Δt a_k.
         p = z[pred.p]
         g_dyn = p[1:] - p[:-1] - pred.dt * a
-        vals_dyn = np.tile([1.0, -1.0, -pred.dt], N * H * 2)
+        block = np.concatenate([eye, -eye, -pred.dt * eye], axis=1)  # (2, 6)
+        vals_dyn = np.broadcast_to(block, (N, H, 2, 6)).reshape(-1)
         g = np.concatenate([e.stat.reshape(-1), g_dyn.reshape(-1)])
         return g, np.concatenate([J.reshape(-1)[self._gather], vals_dyn])
 
@@ -275,10 +272,9 @@ class KktInequalities(ConstraintGroup):
                 primal[r, b.inb + 4 * i : b.inb + 4 * i + 4] = True
             elif i == K:  # the robot base: (x, y, θ), ν_base
                 primal[r, b.iq : b.iq + 3] = True
-                primal[r, b.inu :] = b.planar_nu
+                primal[r, b.inu :] = True
             else:  # the nearest body: all of q, ν_base
-                primal[r, b.iq : b.inu] = True
-                primal[r, b.inu :] = b.planar_nu
+                primal[r, b.iq :] = True
         primal[2 + A :, own_p] = True  # static lines: own position only
         self.mask = np.concatenate([primal, primal], axis=0)
         self.mask[R + np.arange(R), b.ilam + np.arange(R)] = True
