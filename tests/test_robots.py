@@ -6,6 +6,7 @@ from pydrake.multibody.tree import JacobianWrtVariable
 
 from sm2ith_drake.geometry import (
     capsule_distance_and_gradient,
+    einsum,
     segment_closest_points,
 )
 from sm2ith_drake.robots import MobileManipulator, RobotModel
@@ -262,3 +263,24 @@ def test_bad_models_give_clear_errors(tmp_path):
     bad = STRETCH3.replace(self_collision_pairs=[("gripper", "tail")])
     with pytest.raises(ValueError, match="unknown capsule"):
         MobileManipulator(bad)
+
+
+def test_einsum_is_exactly_zero_over_an_empty_axis():
+    """geometry.einsum: np.einsum's values where every operand has entries,
+    exactly zero where the contracted axis is empty (no static lines); numpy
+    returned uninitialized memory there in one of our runs."""
+    rng = np.random.default_rng(3)
+    lam, lines = rng.normal(size=(10, 2, 3)), rng.normal(size=(10, 2, 3, 2))
+    expected = np.einsum("kho,khod->khd", lam, lines)
+    assert np.array_equal(einsum("kho,khod->khd", lam, lines), expected)
+    for _ in range(50):
+        # Heap churn with NaN, then the empty contraction, on views as in
+        # the KKT groups (λ's static-line columns of a wider array).
+        junk = [np.full(n, np.nan) for n in rng.integers(1, 400, 20)]
+        del junk
+        wide = rng.normal(size=(10, 2, 4))
+        out = einsum("kho,khodx->khdx", wide[..., 4:], np.ones((10, 2, 0, 2, 2)))
+        assert out.shape == (10, 2, 2, 2)
+        assert np.array_equal(out, np.zeros_like(out))
+    with pytest.raises(ValueError):
+        einsum("kho,khod->khd", np.zeros((10, 2, 0)), np.zeros((10, 2, 0)))

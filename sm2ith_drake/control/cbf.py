@@ -133,8 +133,27 @@ class DtCbfGroup(ConstraintGroup):
             self.rows, self.cols = BlockPattern(row_blocks, col_blocks)
             self.rows = np.concatenate([self.rows, np.arange(self.num_rows)])
             self.cols = np.concatenate([self.cols, self.slack])
+            self.KeepStructuralNonzeros(self._StructuralMask(robot.capsule_joint_masks))
         else:
             self.rows = self.cols = np.zeros(0, dtype=int)
+
+    def _StructuralMask(self, capsule_masks):
+        """The pattern entries that can be nonzero: a capsule's barrier moves
+        only with the joints that move the capsule (``capsule_masks`` (C, n))."""
+        N, H, S = self._layout.N, self._H, self._S
+        qq = np.concatenate([capsule_masks, capsule_masks], axis=1)  # (C, 2n)
+        C = qq.shape[0]
+        human = np.concatenate([qq, np.ones((C, 4), dtype=bool)], axis=1)
+        step = np.concatenate(
+            [
+                np.broadcast_to(human, (H,) + human.shape).ravel(),
+                np.broadcast_to(qq, (S,) + qq.shape).ravel(),
+            ]
+        )
+        guard = np.broadcast_to(qq, (self.num_guard // max(C, 1),) + qq.shape)
+        return np.concatenate(
+            [np.tile(step, N), guard.ravel(), np.ones(self.num_rows, dtype=bool)]
+        )
 
     def SetGuard(self, positions, velocities, time_step, guarded=None):
         """The measured humans for the guard rows; a human not ``guarded``
@@ -224,4 +243,5 @@ class DtCbfGroup(ConstraintGroup):
             g_guard, vals_guard = self._GuardRows(point)
             g = np.concatenate([g, g_guard])
             vals = np.concatenate([vals, vals_guard])
-        return g + point.z[self.slack], np.concatenate([vals, np.ones(self.num_rows)])
+        vals = np.concatenate([vals, np.ones(self.num_rows)])
+        return g + point.z[self.slack], self.Structural(vals)

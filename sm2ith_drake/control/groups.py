@@ -65,9 +65,29 @@ class ConstraintGroup:
     rows: np.ndarray
     cols: np.ndarray
 
+    # Which entries of a dense block pattern the group keeps (None: all);
+    # see KeepStructuralNonzeros.
+    _keep: np.ndarray | None = None
+
     def Eval(self, point: LinearizationPoint) -> tuple[np.ndarray, np.ndarray]:
         """Returns g(z̄) (num_rows,) and the Jacobian nonzeros (nnz,)."""
         raise NotImplementedError
+
+    def KeepStructuralNonzeros(self, keep: np.ndarray) -> None:
+        """Drops the entries of the pattern (``rows``, ``cols``) that are
+        zero at every point (``keep`` False; e.g. a joint that does not move
+        a capsule): the QPs then factor fewer nonzeros. The group computes
+        its Jacobian on the dense blocks as before and passes it through
+        :meth:`Structural`."""
+        keep = np.asarray(keep, dtype=bool)
+        if keep.shape != self.rows.shape:
+            raise ValueError("the mask must have one entry per pattern entry")
+        self.rows, self.cols = self.rows[keep], self.cols[keep]
+        self._keep = keep
+
+    def Structural(self, values: np.ndarray) -> np.ndarray:
+        """The kept entries of the dense-block Jacobian ``values``."""
+        return values if self._keep is None else values[self._keep]
 
     def DenseJacobian(self, values: np.ndarray, num_variables: int) -> np.ndarray:
         J = np.zeros((self.num_rows, num_variables))

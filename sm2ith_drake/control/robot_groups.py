@@ -10,6 +10,7 @@ import numpy as np
 from sm2ith_drake.control.groups import BlockPattern, ConstraintGroup, VariableLayout
 from sm2ith_drake.control.tasks import Task
 from sm2ith_drake.geometry import capsule_distance_and_gradient
+from sm2ith_drake.robots.planar_base import VelocityMapPatterns
 
 
 class DynamicsGroup(ConstraintGroup):
@@ -64,6 +65,15 @@ class DynamicsGroup(ConstraintGroup):
         )
         self.rows = np.concatenate([base_rows, diag_rows])
         self.cols = np.concatenate([base_cols, diag_cols])
+        # Only the base rows of ∂(Gν)/∂q and G's own nonzeros are ever
+        # nonzero in those blocks.
+        G, dG = VelocityMapPatterns(robot)
+        block = np.concatenate(
+            [(np.eye(n, dtype=bool) | dG).ravel(), np.concatenate([G, G], 1).ravel()]
+        )
+        self.KeepStructuralNonzeros(
+            np.concatenate([np.tile(block, N), np.ones(diag_rows.size, dtype=bool)])
+        )
 
     def Eval(self, point):
         robot, dt, N = self._robot, self._dt, self._layout.N
@@ -85,7 +95,7 @@ class DynamicsGroup(ConstraintGroup):
         diag = np.concatenate(
             [np.ones(N * n), np.ones(N * m), -np.ones(N * m), -dt * np.ones(N * m)]
         )
-        return g, np.concatenate([blocks, diag])
+        return g, self.Structural(np.concatenate([blocks, diag]))
 
 
 class TaskErrorGroup(ConstraintGroup):
@@ -100,6 +110,7 @@ class TaskErrorGroup(ConstraintGroup):
         row_blocks = [k * s + np.arange(s) for k in range(N)]
         col_blocks = [layout.q[k + 1] for k in range(N)]
         self.rows, self.cols = BlockPattern(row_blocks, col_blocks)
+        self.KeepStructuralNonzeros(np.tile(task.JacobianPattern(layout.n).ravel(), N))
 
     def ErrorAndJacobian(self, point):
         cached = point.task_cache.get(self.task.name)
@@ -115,7 +126,7 @@ class TaskErrorGroup(ConstraintGroup):
 
     def Eval(self, point):
         e, J = self.ErrorAndJacobian(point)
-        return np.asarray(e).ravel(), np.asarray(J).ravel()
+        return np.asarray(e).ravel(), self.Structural(np.asarray(J).ravel())
 
 
 class _KinSlice:
@@ -155,6 +166,13 @@ class SelfCollisionGroup(ConstraintGroup):
         ]
         if P:
             self.rows, self.cols = BlockPattern(row_blocks, col_blocks)
+            # A pair's distance moves only with the joints that move one
+            # capsule and not the other: a joint that moves both (the base,
+            # a shared link) moves them rigidly together.
+            masks = robot.capsule_joint_masks
+            pair = np.array([masks[a] ^ masks[b] for a, b in self._pairs])  # (P, n)
+            pair = np.concatenate([pair, np.ones((P, 1), dtype=bool)], axis=1)
+            self.KeepStructuralNonzeros(np.tile(pair.ravel(), N))
         else:
             self.rows = self.cols = np.zeros(0, dtype=int)
 
@@ -164,7 +182,7 @@ class SelfCollisionGroup(ConstraintGroup):
         d, grad = capsule_distance_and_gradient(self._robot, point.kin, self._pairs)
         d, grad = np.asarray(d)[1:], np.asarray(grad)[1:]  # (N, P), (N, P, n)
         jac = np.concatenate([grad, np.ones(grad.shape[:2] + (1,))], axis=2)
-        return (d + point.z[self.slack]).ravel(), jac.ravel()
+        return (d + point.z[self.slack]).ravel(), self.Structural(jac.ravel())
 
 
 def ModelStep(robot, q, nu, u, time_step: float):

@@ -56,6 +56,11 @@ class Task:
         self.terminal_weight = float(terminal_weight)
         self.weighted_sum_weight = float(weighted_sum_weight)
 
+    def JacobianPattern(self, num_positions: int) -> np.ndarray:
+        """(dim, n) bool: the entries of ∂e/∂q that can be nonzero (all,
+        unless a task knows better); the QPs keep only these."""
+        return np.ones((self.dim, num_positions), dtype=bool)
+
     def CalcErrorAndJacobian(
         self, qs: np.ndarray, kin: _Kinematics, target: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
@@ -75,6 +80,14 @@ class EePosition(Task):
     def __init__(self, **kwargs):
         super().__init__(dim=3, **kwargs)
 
+    def JacobianPattern(self, num_positions):
+        # The planar base moves the EE in the plane: x not with y, y not
+        # with x, and the height with none of (x, y, θ).
+        pattern = super().JacobianPattern(num_positions)
+        pattern[0, 1] = pattern[1, 0] = False
+        pattern[2, :NUM_BASE_POSITIONS] = False
+        return pattern
+
     def CalcErrorAndJacobian(self, qs, kin, target):
         return kin.p_WE - target, kin.J_WE
 
@@ -88,6 +101,9 @@ class _Selection(Task):
         self._angles = list(angle_components)
         self._S = np.zeros((len(indices), num_positions))
         self._S[np.arange(len(indices)), self._indices] = 1.0
+
+    def JacobianPattern(self, num_positions):
+        return self._S != 0
 
     def CalcErrorAndJacobian(self, qs, kin, target):
         e = qs[:, self._indices] - target

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize, nnls
 
+from sm2ith_drake.geometry import einsum
 from sm2ith_drake.humans.kernels import relaxed_orca_newton
 
 _ACTIVE_TOL = 1e-7
@@ -310,22 +311,20 @@ def relaxed_orca_actions(
     def slacks(a):
         e = a - v_t
         za = np.maximum(0.0, np.einsum("bk,bk->b", e, e) - r_acc_sq)
-        zv = np.maximum(0.0, rho - np.einsum("bak,bk->ba", n, a))
+        zv = np.maximum(0.0, rho - einsum("bak,bk->ba", n, a))
         return e, za, zv
 
     def cost(a, za, zv):
         d = a - v_pref
         return (
-            np.einsum("bk,bk->b", d, d)
-            + Ma * za**2
-            + Mv * np.einsum("ba,ba->b", zv, zv)
+            np.einsum("bk,bk->b", d, d) + Ma * za**2 + Mv * einsum("ba,ba->b", zv, zv)
         )
 
     def gradient(a, e, za, zv):
         return (
             2 * (a - v_pref)
             + (4 * Ma * za)[:, None] * e
-            - 2 * Mv * np.einsum("ba,bak->bk", zv, n)
+            - 2 * Mv * einsum("ba,bak->bk", zv, n)
         )
 
     # Damped Newton on f (see _Reduced), row by row, compiled

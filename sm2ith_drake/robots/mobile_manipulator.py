@@ -118,6 +118,8 @@ class MobileManipulator:
             )
         self._ReadCapsules()
         self._PruneSteps()
+        moved = self._ancestors[self._capsule_slots].any(axis=1).astype(float)
+        self.capsule_joint_masks = moved @ np.abs(self.plant_positions_from_q) > 0
 
     # ------------------------------------------------------------------ setup
 

@@ -3,6 +3,8 @@ pose (x, y, θ) and ν with its body-frame velocities (v_x, v_y, ω) for a
 holonomic base or (v, ω) for a differential drive; the arm's joints follow
 one to one in both."""
 
+import numpy as np
+
 # (x, y, θ): the first entries of q.
 NUM_BASE_POSITIONS = 3
 
@@ -15,3 +17,21 @@ def NumBaseVelocities(robot) -> int:
 def ArmVelocityIndex(robot, arm_position_index):
     """The ν index of the arm joint at q index ``arm_position_index``."""
     return arm_position_index + robot.num_velocities - robot.num_positions
+
+
+def VelocityMapPatterns(robot) -> tuple[np.ndarray, np.ndarray]:
+    """The structural nonzeros of G(q) (n, m) and of ∂(G(q)ν)/∂q (n, n) for
+    q̇ = G(q)ν: the base's rotation (or unicycle) block and the heading
+    column, the arm's identity."""
+    n, m = robot.num_positions, robot.num_velocities
+    G = np.zeros((n, m), dtype=bool)
+    if NumBaseVelocities(robot) == 3:
+        G[:2, :2] = True
+        G[2, 2] = True
+    else:
+        G[:2, 0] = True
+        G[2, 1] = True
+    G[3:, m - (n - 3) :] = np.eye(n - 3, dtype=bool)
+    dG = np.zeros((n, n), dtype=bool)
+    dG[:2, 2] = True
+    return G, dG

@@ -14,8 +14,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sm2ith_drake.control.groups import BlockPattern, ConstraintGroup
-from sm2ith_drake.robots.planar_base import NumBaseVelocities
+from sm2ith_drake.control.groups import ConstraintGroup
+from sm2ith_drake.geometry import einsum
+from sm2ith_drake.robots.planar_base import NumBaseVelocities, VelocityMapPatterns
 
 
 def KktTerms(pred, z, v, n, rho, no, rho_o):
@@ -31,7 +32,7 @@ def KktTerms(pred, z, v, n, rho, no, rho_o):
         + 2 * lam_s[..., None] * a
         + 2 * lam_a[..., None] * (a - v)
         - np.einsum("khi,khid->khd", lam_i, n)
-        - np.einsum("kho,khod->khd", lam_o, no)
+        - einsum("kho,khod->khd", lam_o, no)
     )
     c_s = np.sum(a * a, axis=-1) - cfg.max_speed**2
     c_a = (
@@ -91,6 +92,10 @@ class KktBlocks:
         self.iq = self.inb + 4 * pred.num_neighbors
         self.inu = self.iq + self.n
         self.width = self.inu + self.nb
+        # The base velocities that move the base in the plane (a holonomic
+        # base's ω does not): the only ν columns a half-plane depends on.
+        G, _ = VelocityMapPatterns(pred.robot)
+        self.planar_nu = G[:2, : self.nb].any(axis=0)
         self.groups = []
         self._cache = None
         self.columns = self._Columns()
@@ -195,16 +200,16 @@ class KktEqualities(ConstraintGroup):
         self.num_kkt = N * H * 2
         self.num_rows = self.num_kkt + N * H * 2
         b = blocks
-        # Stationarity depends on a, every λ and the whole local state.
+        # Stationarity component d depends on a_d (not the other component),
+        # every λ and the whole local state (ν only where it moves the base).
         self.mask = np.ones((2, b.width), dtype=bool)
-        row_blocks, col_blocks = [], []
-        for k in range(N):
-            for j in range(H):
-                row_blocks.append(self.num_kkt + (k * H + j) * 2 + np.arange(2))
-                col_blocks.append(
-                    np.concatenate([pred.p[k + 1, j], pred.p[k, j], pred.a[k, j]])
-                )
-        self._dyn_rows, self._dyn_cols = BlockPattern(row_blocks, col_blocks)
+        self.mask[:, 0:2] = np.eye(2, dtype=bool)
+        self.mask[:, b.inu :] = b.planar_nu
+        # Dynamics, per component: p_{k+1}, p_k, a_k.
+        self._dyn_rows = np.repeat(self.num_kkt + np.arange(N * H * 2), 3)
+        self._dyn_cols = np.stack(
+            [pred.p[1:].ravel(), pred.p[:-1].ravel(), pred.a.ravel()], axis=1
+        ).ravel()
         blocks.groups.append(self)
         self.UpdatePattern()
 
@@ -232,15 +237,14 @@ class KktEqualities(ConstraintGroup):
         lam_i = lam[..., 2 : 2 + A]
         dn = e.dn  # (N, H, A, 2, 8)
         dX_own = -np.einsum("khi,khidx->khdx", lam_i, dn[..., :4])
-        dX_own[..., 0:2] -= np.einsum("kho,khodx->khdx", lam[..., 2 + A :], e.dno)
+        dX_own[..., 0:2] -= einsum("kho,khodx->khdx", lam[..., 2 + A :], e.dno)
         dX_own[..., 2:4] -= 2 * lam[..., 1, None, None] * eye
         dX_other = -np.einsum("khi,khidx->khdix", lam_i, dn[..., 4:])
         b.StateDerivatives(J, slice(0, 2), dX_own, dX_other, e)
         # Dynamics p_{k+1} − p_k − Δt a_k.
         p = z[pred.p]
         g_dyn = p[1:] - p[:-1] - pred.dt * a
-        block = np.concatenate([eye, -eye, -pred.dt * eye], axis=1)  # (2, 6)
-        vals_dyn = np.broadcast_to(block, (N, H, 2, 6)).reshape(-1)
+        vals_dyn = np.tile([1.0, -1.0, -pred.dt], N * H * 2)
         g = np.concatenate([e.stat.reshape(-1), g_dyn.reshape(-1)])
         return g, np.concatenate([J.reshape(-1)[self._gather], vals_dyn])
 
@@ -272,9 +276,10 @@ class KktInequalities(ConstraintGroup):
                 primal[r, b.inb + 4 * i : b.inb + 4 * i + 4] = True
             elif i == K:  # the robot base: (x, y, θ), ν_base
                 primal[r, b.iq : b.iq + 3] = True
-                primal[r, b.inu :] = True
+                primal[r, b.inu :] = b.planar_nu
             else:  # the nearest body: all of q, ν_base
-                primal[r, b.iq :] = True
+                primal[r, b.iq : b.inu] = True
+                primal[r, b.inu :] = b.planar_nu
         primal[2 + A :, own_p] = True  # static lines: own position only
         self.mask = np.concatenate([primal, primal], axis=0)
         self.mask[R + np.arange(R), b.ilam + np.arange(R)] = True
