@@ -311,7 +311,7 @@ def relaxed_orca_actions(
     def slacks(a):
         e = a - v_t
         za = np.maximum(0.0, np.einsum("bk,bk->b", e, e) - r_acc_sq)
-        zv = np.maximum(0.0, rho - einsum("bak,bk->ba", n, a))
+        zv = np.maximum(0.0, rho - np.einsum("bak,bk->ba", n, a))
         return e, za, zv
 
     def cost(a, za, zv):

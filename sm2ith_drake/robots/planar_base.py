@@ -31,7 +31,8 @@ def VelocityMapPatterns(robot) -> tuple[np.ndarray, np.ndarray]:
     else:
         G[:2, 0] = True
         G[2, 1] = True
-    G[3:, m - (n - 3) :] = np.eye(n - 3, dtype=bool)
+    arm = n - NUM_BASE_POSITIONS
+    G[NUM_BASE_POSITIONS:, m - arm :] = np.eye(arm, dtype=bool)
     dG = np.zeros((n, n), dtype=bool)
     dG[:2, 2] = True
     return G, dG
