@@ -393,6 +393,54 @@ def test_intimate_space_time_from_the_base(stretch):
     assert HumanMetrics(log, stretch, [0.3])["intimate_space_time_base"] == 0.0
 
 
+def _ApproachLog(stretch, robot_x, person_x):
+    """The Stretch 3 (arm tucked) at x = robot_x[i] and one person at
+    (person_x[i], 0), one sample per 0.1 s."""
+    log = RunLog()
+    for i, (rx, px) in enumerate(zip(robot_x, person_x, strict=True)):
+        x = np.zeros(stretch.num_positions + stretch.num_velocities)
+        x[0] = rx
+        x[3 : stretch.num_positions] = [0.2, 0.0, 0.0, 0.0]
+        log.times.append(0.1 * i)
+        log.states.append(x)
+        log.human_positions.append(np.array([[px, 0.0]]))
+    return log
+
+
+def test_contact_is_the_robots_doing_only_when_the_robot_closes_in(stretch):
+    # The person is behind the robot (−x, where the base is the nearest
+    # body): the gap is the separation less a constant, found at one pose.
+    c = (
+        1.0
+        - HumanMetrics(_ApproachLog(stretch, [0.0], [-1.0]), stretch, [0.3])[
+            "min_human_gap"
+        ]
+    )
+    gaps = [0.1, 0.05, 0.01, -0.04, -0.09, -0.09]  # touching in samples 3–5
+    # The robot backs into a person who stands still, then stops: the
+    # samples in which it moved deeper are its doing, the last is not.
+    log = _ApproachLog(stretch, [-1.0 + c + g for g in gaps], [-1.0] * 6)
+    m = HumanMetrics(log, stretch, [0.3])
+    assert m["min_human_gap"] == pytest.approx(-0.09)
+    assert m["collision_samples"] == 3
+    assert m["robot_closing_contact_samples"] == 2
+    # The same gaps with the person walking into a robot that stands still.
+    log = _ApproachLog(stretch, [0.0] * 6, [-c - g for g in gaps])
+    m = HumanMetrics(log, stretch, [0.3])
+    assert m["min_human_gap"] == pytest.approx(-0.09)
+    assert m["collision_samples"] == 3
+    assert m["robot_closing_contact_samples"] == 0
+    # The robot backing off (1 cm a sample) from a person who pushes in
+    # faster (6 cm): contact throughout, never the robot's doing.
+    robot_x = [0.01 * i for i in range(6)]
+    log = _ApproachLog(
+        stretch, robot_x, [x - c - g for x, g in zip(robot_x, gaps, strict=True)]
+    )
+    m = HumanMetrics(log, stretch, [0.3])
+    assert m["collision_samples"] == 3
+    assert m["robot_closing_contact_samples"] == 0
+
+
 def test_obstacle_clearance_moves_with_the_wall(stretch):
     x = np.zeros((1, stretch.num_positions + stretch.num_velocities))
     x[0, 3 : stretch.num_positions] = [0.5, 0.05, 0.0, 0.0]

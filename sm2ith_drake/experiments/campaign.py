@@ -39,7 +39,7 @@ from sm2ith_drake.experiments.people import (
 from sm2ith_drake.experiments.report import MakePlots, WriteReport
 from sm2ith_drake.experiments.runs import LoadRunScenario, PlanRuns, RunSpec
 from sm2ith_drake.experiments.studies import STUDIES, Study
-from sm2ith_drake.run.metrics import CAMPAIGN_METRICS, CampaignRow
+from sm2ith_drake.run.metrics import BOOLEAN_METRICS, CAMPAIGN_METRICS, CampaignRow
 from sm2ith_drake.run.simulation import RunSimulation
 from sm2ith_drake.scenario_loader import LoadScenario
 
@@ -138,7 +138,7 @@ def _Parse(raw: dict) -> dict:
     for key, value in raw.items():
         if key in ("humans", "seed"):
             out[key] = int(value)
-        elif key in ("success", "collision", "wall_collision"):
+        elif key in BOOLEAN_METRICS:
             out[key] = value == "True" if value in ("True", "False") else math.nan
         elif key in CAMPAIGN_METRICS or key in ("wall_time_s", "duration"):
             try:

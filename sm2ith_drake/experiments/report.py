@@ -23,12 +23,13 @@ from sm2ith_drake.experiments.findings import (
     WhatHoldsTable,
 )
 from sm2ith_drake.experiments.statistics import MedianCI
+from sm2ith_drake.run.metrics import BOOLEAN_METRICS
 
 # One colour per method, in the study's order (colour-blind safe), and the
 # colour of the medians' CI bars.
 _COLORS = ["#0072B2", "#E69F00", "#009E73", "#CC79A7", "#56B4E9"]
 _CI_COLOR = "#D55E00"
-_BOOLEAN = ("success", "collision", "wall_collision", CONTACT_FREE_SUCCESS)
+_BOOLEAN = (*BOOLEAN_METRICS, CONTACT_FREE_SUCCESS)
 
 
 def _Values(rows, family, humans, method, metric):

@@ -54,6 +54,35 @@ def BaseHumanDistances(robot, states, human_positions) -> np.ndarray:
     return d - robot.model.base_radius
 
 
+# A contact sample counts as the robot's doing when the robot's own motion
+# since the previous sample closed the gap to that person by more than this
+# (m): a robot standing still, or backing off, while a person walks into it
+# does not count (RobotClosingContacts).
+ROBOT_CLOSING_TOLERANCE = 1e-3
+
+
+def RobotClosingContacts(robot, states, human_positions, gap, dist) -> np.ndarray:
+    """(T,) whether, in each sample, someone is in contact (gap < 0) and the
+    robot's own motion since the previous sample closed the gap to them.
+
+    The change of the distance between two samples splits exactly into the
+    robot's part, d(q_t, p_{t−1}) − d(q_{t−1}, p_{t−1}), and the person's,
+    d(q_t, p_t) − d(q_t, p_{t−1}); a contact is the robot's doing when the
+    robot's part is below −ROBOT_CLOSING_TOLERANCE. Any robot body counts: an
+    arm swept into a person by a turning base is the robot closing in."""
+    x = np.asarray(states, dtype=float)
+    P = np.asarray(human_positions, dtype=float)
+    closing = np.zeros(len(x), dtype=bool)
+    if len(x) < 2 or P.size == 0:
+        return closing
+    robot_moved = HumanDistances(robot, x[1:], P[:-1])  # d(q_t, p_{t−1})
+    robot_part = robot_moved - dist[:-1]
+    closing[1:] = np.any(
+        (gap[1:] < 0) & (robot_part < -ROBOT_CLOSING_TOLERANCE), axis=1
+    )
+    return closing
+
+
 def HumanMetrics(log, robot, human_radii) -> dict:
     """Safety and proxemics against the true human positions.
 
@@ -61,7 +90,10 @@ def HumanMetrics(log, robot, human_radii) -> dict:
     paper's words). ``intimate_space_time_base``: time in which the base's
     disc reaches into anyone's circle (base centre within 0.45 m + base
     radius of a person's centre); ``intimate_space_time``: the same for any
-    robot body (base or arm link capsule)."""
+    robot body (base or arm link capsule). ``collision_samples``: samples
+    in which any body touches anyone; ``robot_closing_contact_samples``:
+    those in which the robot's own motion closed in on the person touched
+    (RobotClosingContacts)."""
     if not log.human_positions:
         return {}
     dist = HumanDistances(robot, log.states, log.human_positions)  # (T, H)
@@ -75,6 +107,11 @@ def HumanMetrics(log, robot, human_radii) -> dict:
         "min_human_gap": float(gap.min()),
         "mean_human_distance": float(dist.mean()),
         "collision_samples": int(np.sum(np.any(gap < 0, axis=1))),
+        "robot_closing_contact_samples": int(
+            np.sum(
+                RobotClosingContacts(robot, log.states, log.human_positions, gap, dist)
+            )
+        ),
         "intimate_space_time": float(np.sum(dt[inside])),
         "intimate_space_time_base": float(np.sum(dt[inside_base])),
     }
@@ -270,6 +307,7 @@ _SUMMARY_COLUMNS = (
     "mean_human_distance",
     "min_human_gap",
     "collision_samples",
+    "robot_closing_contact_samples",
     "step_time_median_ms",
     "step_time_p95_ms",
     "step_time_max_ms",
@@ -295,11 +333,15 @@ CAMPAIGN_METRICS = [
     "base_retreat",
     "min_human_distance",
     "collision",
+    "robot_closing_contact",
     "min_obstacle_clearance",
     "wall_collision",
     *_SUMMARY_COLUMNS,
     "simulated_time",
 ]
+
+# The CAMPAIGN_METRICS that are True/False (NaN when not measured).
+BOOLEAN_METRICS = ("success", "collision", "robot_closing_contact", "wall_collision")
 
 
 def CampaignRow(log, robot, scenario, metrics: dict, reference_xy=None) -> dict:
@@ -325,8 +367,10 @@ def CampaignRow(log, robot, scenario, metrics: dict, reference_xy=None) -> dict:
     task). Distances to people
     are from a human's centre to the nearest robot body (base or any arm
     link); the gap subtracts the person's radius; ``collision``: a person
-    touched. Obstacle clearance: any robot capsule to any wall;
-    ``wall_collision``: it went below 0.
+    touched; ``robot_closing_contact``: a person touched while the robot's
+    own motion closed in on them (RobotClosingContacts), so a contact in
+    which only the person moved is ``collision`` alone. Obstacle clearance:
+    any robot capsule to any wall; ``wall_collision``: it went below 0.
     """
     nan = float("nan")
     row = dict.fromkeys(CAMPAIGN_METRICS, nan)
@@ -384,5 +428,9 @@ def CampaignRow(log, robot, scenario, metrics: dict, reference_xy=None) -> dict:
             row[key] = metrics[key]
     if "collision_samples" in metrics:
         row["collision"] = bool(metrics["collision_samples"] > 0)
+    if "robot_closing_contact_samples" in metrics:
+        row["robot_closing_contact"] = bool(
+            metrics["robot_closing_contact_samples"] > 0
+        )
     row["simulated_time"] = float(times[-1]) if times.size else 0.0
     return row
