@@ -5,6 +5,7 @@ the accounting adds up, never how long anything took.
 """
 
 import json
+import time
 
 import pytest
 
@@ -31,6 +32,8 @@ EXPECTED_PHASES = [
     "piqp",
     "piqp_setup",
     "piqp_solve",
+    "piqp_kkt_factor",
+    "piqp_kkt_solve",
 ]
 
 
@@ -94,6 +97,23 @@ def test_nested_phases_are_charged_exclusive_time():
     assert list(summary)[0] == STEP and list(summary)[-1] == OTHER
     assert summary[OTHER] >= 0
     assert p.CallsPerStep()["inner"] == 2
+
+
+def test_recorded_time_is_taken_from_the_open_phase():
+    p = Profiler()
+    p.Enable()
+    p.Record("solver_timer", 1.0)  # no open phase: ignored
+    p.BeginStep()
+    with p.Phase("solve"):
+        time.sleep(0.02)
+        p.Record("factor", 0.015)  # what a solver's own timer reported
+    p.EndStep()
+    _, exclusive, inclusive, calls = p.steps[0]
+    assert exclusive["factor"] == pytest.approx(0.015)
+    assert inclusive["solve"] >= 0.02
+    assert exclusive["solve"] == pytest.approx(inclusive["solve"] - 0.015)
+    assert calls["factor"] == 1
+    assert "solver_timer" not in p.outside
 
 
 def test_bench_profile_has_the_phases_and_adds_up():

@@ -127,7 +127,16 @@ class PiqpWorkspace:
                     P=P, c=q, A=A, b=b, G=G, h_l=h_l, h_u=h_u, x_l=x_lower, x_u=x_upper
                 )
             with PROFILER.Phase("piqp_solve"):
+                timings = PROFILER.enabled
+                if timings:
+                    self._solver.settings.compute_timings = True
                 status = self._solver.solve()
+                if timings:
+                    # PIQP's own timers: the KKT factorizations and the
+                    # triangular solves of the solve's iterations.
+                    info = self._solver.result.info
+                    PROFILER.Record("piqp_kkt_factor", info.kkt_factor_time)
+                    PROFILER.Record("piqp_kkt_solve", info.kkt_solve_time)
         except Exception as e:  # noqa: BLE001 (an invalid setting, a NaN)
             self._solver = None
             return None, f"qp error: {e}", 0

@@ -132,6 +132,21 @@ class Profiler:
 
         return decorate
 
+    def Record(self, name: str, seconds: float) -> None:
+        """Charges ``seconds`` that something else timed (a solver's own
+        timers) inside the innermost open phase to the nested phase
+        ``name``: the open phase's exclusive time shrinks by as much."""
+        if not self.enabled or not self._stack:
+            return
+        seconds = max(0.0, float(seconds))
+        self._stack[-1].children += seconds
+        if self._current is None:
+            self.outside[name] += seconds
+        else:
+            self._current[name] += seconds
+            self._inclusive[name] += seconds
+            self._calls[name] += 1
+
     def BeginStep(self) -> None:
         """Opens a step (closing one still open)."""
         if not self.enabled:
