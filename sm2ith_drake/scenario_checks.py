@@ -252,6 +252,10 @@ def _ValidatePeople(scenario: Scenario) -> None:
         raise ScenarioError(f"safety.mode must be 'safe' or 'paper', got {s.mode!r}")
     if s.guard_steps < 0:
         raise ScenarioError(f"safety.guard_steps must be ≥ 0, got {s.guard_steps}")
+    if s.static_guard_steps < 0:
+        raise ScenarioError(
+            f"safety.static_guard_steps must be ≥ 0, got {s.static_guard_steps}"
+        )
     _NonNegative(s.guard_deviation, "safety.guard_deviation")
     _NonNegative(s.guard_hold, "safety.guard_hold")
     _NonNegative(s.guard_gap, "safety.guard_gap")

@@ -318,6 +318,7 @@ def test_guard_holds_over_its_steps_against_a_person_who_does_not_yield():
 
     def barrier(guard_steps):
         safety.guard_steps = guard_steps
+        safety.static_guard_steps = 0  # the moving guard alone
         controller = MpcController(
             robot,
             scenario.tasks,
@@ -355,6 +356,69 @@ def test_guard_holds_over_its_steps_against_a_person_who_does_not_yield():
     h1, _ = barrier(1)
     assert h1[1] >= a * h1[0] - 5e-3
     assert min(h1[2] - a * h1[1], h1[3] - a * h1[2]) < -1e-2
+
+
+@pytest.mark.parametrize("predictor", ["cvmm", "orca_kkt"])
+def test_static_guard_keeps_the_robot_from_following_a_person_who_leaves(predictor):
+    """A person 0.2 m outside the barrier walks away from a robot driving at
+    them: both predictions have the gap grow, so without the static guard
+    the plan closes in on where the person is now faster than the barrier
+    allows; with it (safe variant, 2 steps) the first two steps keep the
+    barrier against the person standing where measured."""
+    import dataclasses
+
+    from sm2ith_drake.control.mpc_controller import MpcController
+    from sm2ith_drake.humans.messages import HumanEstimate
+    from sm2ith_drake.humans.robot_view import HumanDistances
+
+    scenario, robot, _ = _replay_controller()
+    reach = scenario.safety.human_radius + scenario.safety.human_margin
+    a = 1.0 - scenario.safety.gamma
+    q0 = np.array(robot.default_q, dtype=float)
+    nu0 = np.zeros(robot.num_velocities)
+    nu0[0] = 0.5  # driving at the person (+x)
+    ahead = np.array([3.0, 0.0])
+    while _Gap0(robot, q0, ahead) - reach > 0.2:
+        ahead[0] -= 0.005
+    leaving = HumanEstimate(ids=[1], positions=[ahead], velocities=[[0.6, 0.0]])
+    prediction = dataclasses.replace(scenario.prediction, predictor=predictor)
+
+    def plan(static_guard_steps):
+        safety = dataclasses.replace(
+            scenario.safety, static_guard_steps=static_guard_steps
+        )
+        controller = MpcController(
+            robot,
+            scenario.tasks,
+            scenario.controller,
+            prediction=prediction,
+            safety=safety,
+        )
+        targets = {t.name: np.asarray(t.target, dtype=float) for t in controller.tasks}
+        # The base's goal lies beyond the person: it wants to drive on.
+        for name in targets:
+            if name.startswith("base"):
+                targets[name][:2] = ahead + [3.0, 0.0]
+        state = controller.Step(
+            controller.InitialState(),
+            time_now=0.0,
+            q0=q0,
+            nu0=nu0,
+            targets=targets,
+            prediction=_Predict(controller, leaving, q0, nu0),
+        )
+        assert state.record.mode == "solved"
+        cbf = controller.program.cbf
+        assert cbf.static_guard_steps == static_guard_steps
+        # h against the person standing where measured.
+        h = HumanDistances(robot, state.plan.q, ahead[None, None])[:, 0] - reach
+        return h
+
+    h = plan(2)
+    for k in range(2):
+        assert h[k + 1] >= a * h[k] - 2e-3, (k, h[:3])
+    h0 = plan(0)
+    assert min(h0[1] - a * h0[0], h0[2] - a * h0[1]) < -1e-2, h0[:3]
 
 
 def _Predict(controller, estimate, q0=None, nu0=None):

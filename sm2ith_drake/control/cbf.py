@@ -47,6 +47,16 @@ def ObstacleSegments(obstacles) -> np.ndarray:
 _UNGUARDED = np.array([1.0e4, 1.0e4])
 
 
+def _OutOfReach(positions, held):
+    """The positions with every human not ``held`` (None: all are) moved out
+    of reach (each to its own far point)."""
+    p = np.array(positions, dtype=float).reshape(-1, 2)
+    if held is not None:
+        off = ~np.asarray(held, dtype=bool)
+        p[off] = _UNGUARDED + 10.0 * np.arange(len(p))[off, None]
+    return p
+
+
 class DtCbfGroup(ConstraintGroup):
     """h_{k+1} − (1 − γ) h_k ≥ 0 for robot capsules vs. humans and walls.
 
@@ -58,7 +68,12 @@ class DtCbfGroup(ConstraintGroup):
     never closes in on one who does not faster than the barrier allows. More
     than one step matters for a robot with inertia: a guard on the first step
     alone lets the plan build up speed toward a person in the later steps
-    that the next first step can no longer brake.
+    that the next first step can no longer brake. With ``static_guard_steps``
+    = G_s > 0, G_s × H × C more rows (after those) hold the first G_s steps
+    against each human standing still where measured: a prediction (CVMM's
+    or SM²ITH's) that has a person move away never lets the robot close in
+    on where they are now faster than the barrier allows, so the robot does
+    not follow someone out of its margin into contact.
     """
 
     name = "dt_cbf"
@@ -75,6 +90,7 @@ class DtCbfGroup(ConstraintGroup):
         obstacle_segments,
         obstacle_margin,
         guard_steps=0,
+        static_guard_steps=0,
     ):
         self._robot = robot
         self._layout = layout
@@ -90,10 +106,14 @@ class DtCbfGroup(ConstraintGroup):
         self._obstacle_offset = robot.capsule_radii[None, :] + obstacle_margin
         self.rows_per_step = (H + S) * C
         self.guard_steps = int(min(max(guard_steps, 0), N))
-        self.num_guard = self.guard_steps * H * C
+        self.static_guard_steps = int(min(max(static_guard_steps, 0), N))
+        # Guard row blocks, in row order: (steps, the moving guard?).
+        self._guards = [(self.guard_steps, True), (self.static_guard_steps, False)]
+        self.num_guard = (self.guard_steps + self.static_guard_steps) * H * C
         self.num_rows = N * self.rows_per_step + self.num_guard
         self.guard_p0 = np.zeros((H, 2))
         self.guard_v0 = np.zeros((H, 2))
+        self.static_p0 = np.zeros((H, 2))
         self.guard_dt = 0.0
         row_blocks, col_blocks = [], []
         for k in range(N):
@@ -115,10 +135,13 @@ class DtCbfGroup(ConstraintGroup):
                 for c in range(C):
                     row_blocks.append(np.array([base + H * C + s * C + c]))
                     col_blocks.append(np.concatenate([layout.q[k], layout.q[k + 1]]))
-        for r in range(self.num_guard):
-            k = r // (H * C)
-            row_blocks.append(np.array([N * self.rows_per_step + r]))
-            col_blocks.append(np.concatenate([layout.q[k], layout.q[k + 1]]))
+        row = N * self.rows_per_step
+        for steps, _ in self._guards:
+            for r in range(steps * H * C):
+                k = r // (H * C)
+                row_blocks.append(np.array([row + r]))
+                col_blocks.append(np.concatenate([layout.q[k], layout.q[k + 1]]))
+            row += steps * H * C
         # One slack per row under an exact penalty (MpcProgram): zero
         # whenever the hard constraints can be met; when they cannot (a person
         # walking into the robot faster than it can get away), the robot does
@@ -155,29 +178,42 @@ class DtCbfGroup(ConstraintGroup):
             [np.tile(step, N), guard.ravel(), np.ones(self.num_rows, dtype=bool)]
         )
 
-    def SetGuard(self, positions, velocities, time_step, guarded=None):
+    def SetGuard(self, positions, velocities, time_step, guarded=None, active=None):
         """The measured humans for the guard rows; a human not ``guarded``
-        (H,) bool (default: all are) is moved out of reach, so its rows
-        hold trivially (the QP's pattern stays)."""
+        (H,) bool (default: all are) is moved out of reach of the moving
+        guard's rows, one not ``active`` (default: all are) out of reach of
+        the static guard's, so their rows hold trivially (the QP's pattern
+        stays)."""
         p = np.array(positions, dtype=float).reshape(-1, 2)
         v = np.array(velocities, dtype=float).reshape(-1, 2)
+        self.static_p0 = _OutOfReach(p, active)
+        v = v.copy()
         if guarded is not None:
-            off = ~np.asarray(guarded, dtype=bool)
-            p[off] = _UNGUARDED + 10.0 * np.arange(len(p))[off, None]
-            v[off] = 0.0
-        self.guard_p0, self.guard_v0 = p, v
+            v[~np.asarray(guarded, dtype=bool)] = 0.0
+        self.guard_p0, self.guard_v0 = _OutOfReach(p, guarded), v
         self.guard_dt = float(time_step)
 
     def _GuardRows(self, point):
+        """Every guard block's rows (moving, then static) and values."""
+        g, vals = [], []
+        for steps, moving in self._guards:
+            if steps:
+                p0 = self.guard_p0 if moving else self.static_p0
+                v0 = self.guard_v0 if moving else np.zeros_like(p0)
+                gi, vi = self._GuardBlock(point, steps, p0, v0)
+                g.append(gi)
+                vals.append(vi)
+        return np.concatenate(g), np.concatenate(vals)
+
+    def _GuardBlock(self, point, G, p0, v0):
         """h(q_{k+1}, p0 + (k+1)Δt v0) − (1 − γ) h(q_k, p0 + kΔt v0) for
         k < G, and their q_k, q_{k+1} gradients."""
-        G = self.guard_steps
         kin = point.kin
         ends = kin.capsule_points[: G + 1, :, :, :2]  # knots 0 … G
         jac = kin.capsule_jacobians[: G + 1, :, :, :2, :]
         A, B = ends[:, None, :, 0], ends[:, None, :, 1]  # (G+1, 1, C, 2)
         k = np.arange(G + 1)[:, None, None]
-        P = self.guard_p0[None] + k * self.guard_dt * self.guard_v0[None]
+        P = p0[None] + k * self.guard_dt * v0[None]
         d, s, nrm = point_segment_distance_2d(A, B, P[:, :, None, :])  # (G+1, H, C)
         h = d - self._human_offset
         JA, JB = jac[:, None, :, 0], jac[:, None, :, 1]

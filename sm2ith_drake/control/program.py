@@ -124,13 +124,23 @@ class MpcProgram:
                 obstacle_segments=segments,
                 obstacle_margin=safety.obstacle_margin,
                 # Only SM²ITH's interactive prediction is ever guarded
-                # (SafetyConfig.guard_deviation): without it the rows are
-                # left out, so CVMM and React are the same controller in
-                # both safety variants.
+                # against people moving on (SafetyConfig.guard_deviation):
+                # CVMM's prediction already is that motion.
                 guard_steps=(
                     safety.guard_steps
                     if predictor is not None
                     and predictor.name == "orca_kkt"
+                    and safety.mode == "safe"
+                    else 0
+                ),
+                # Every prediction that moves people is guarded against
+                # them standing still (SafetyConfig.static_guard_steps);
+                # React's barrier already is that, so React is the same
+                # controller in both safety variants.
+                static_guard_steps=(
+                    safety.static_guard_steps
+                    if predictor is not None
+                    and predictor.name != "react"
                     and safety.mode == "safe"
                     else 0
                 ),
@@ -192,6 +202,7 @@ class MpcProgram:
                     self.predictor.v0,
                     self.time_step,
                     guarded=self.predictor.guarded,
+                    active=self.predictor.active,
                 )
         return lower, upper
 
