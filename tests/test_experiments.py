@@ -275,6 +275,33 @@ def test_mini_campaign_end_to_end(tmp_path):
     bad = _cli("replay", str(out / "adversarial.csv"), "7", cwd=tmp_path)
     assert bad.returncode == 2 and "ROW must be" in bad.stderr
 
+    # Another override into the same CSV is refused, and so is a bad one,
+    # before any run.
+    other = _cli(*args, "--scenario_text", "{safety: {guard_gap: 0.1}}", cwd=tmp_path)
+    assert other.returncode == 2 and "use another --out" in other.stderr
+    typo = _cli(*args, "--scenario_text", "{safety: {gard_gap: 0.1}}", cwd=tmp_path)
+    assert typo.returncode == 2 and "--scenario_text" in typo.stderr
+    assert "gard_gap" in typo.stderr
+    assert len(ReadRows(out / "adversarial.csv")) == 2
+
+
+def test_scenario_text_applies_alike_to_every_method():
+    study = STUDIES["doorway"]
+    text = "{safety: {guard_gap: 0.1, mode: paper}, prediction: {max_neighbors: 2}}"
+    plain = PlanRuns(study, runs=1, only="stretch3_1h", variants=["safe"])
+    specs = PlanRuns(
+        study, runs=1, only="stretch3_1h", variants=["safe"], scenario_text=text
+    )
+    assert [s.run_id for s in specs] == [s.run_id for s in plain]
+    for spec in specs:
+        scenario = LoadRunScenario(spec)
+        assert scenario.safety.guard_gap == 0.1
+        assert scenario.prediction.max_neighbors == 2
+        # The variant and the method keep their own settings.
+        assert scenario.safety.mode == "safe"
+        expected = {"SM2ITH": "orca_kkt", "CVMM": "cvmm", "React": "react"}
+        assert scenario.prediction.predictor == expected[spec.method]
+
 
 def test_same_seed_reproduces_the_metrics(tmp_path):
     spec = PlanRuns(

@@ -51,6 +51,7 @@ def _Experiment(args) -> int:
             duration=args.duration,
             variants=variants,
             people=people,
+            scenario_text=args.scenario_text,
             executor=args.executor,
             address=args.address,
         )
@@ -197,6 +198,13 @@ def AddExperimentCommands(sub) -> None:
         default=0.0,
         help="cap each run's simulated seconds (0: the scenario's; a capped "
         "run that did not finish counts as a timeout)",
+    )
+    exp.add_argument(
+        "--scenario_text",
+        default="",
+        help="YAML applied to every run, alike for every method (the method's "
+        "and the variant's own settings win), e.g. "
+        "'{safety: {guard_gap: 0.1}}'; use a new --out for each",
     )
     exp.set_defaults(func=_Experiment)
 

@@ -202,6 +202,7 @@ def RunCampaign(
     duration: float = 0.0,
     variants: tuple | list | None = None,
     people: tuple | list | None = None,
+    scenario_text: str = "",
     executor: str = "local",
     address: str | None = None,
     progress: bool = True,
@@ -229,11 +230,26 @@ def RunCampaign(
         duration=duration,
         variants=variants,
         people=people,
+        scenario_text=scenario_text,
     )
     if not specs:
         raise ValueError(f"no runs in study '{study.name}' match --only {only!r}")
+    if scenario_text:
+        try:  # a bad override is refused before any run
+            LoadRunScenario(specs[0])
+        except Exception as e:  # noqa: BLE001 (ScenarioError, YAML errors)
+            raise ValueError(f"--scenario_text: {e}") from e
     _CsvColumns(csv_path)  # a foreign CSV is refused before any run
-    finished = {r["run_id"] for r in ReadRows(csv_path) if r.get("status") == "ok"}
+    done = {r["run_id"]: r for r in ReadRows(csv_path) if r.get("status") == "ok"}
+    for spec in specs:
+        row = done.get(spec.run_id)
+        if row is not None and row.get("scenario_text", "") != spec.scenario_text:
+            raise ValueError(
+                f"{csv_path} already has run {spec.run_id} with other overrides "
+                f"({row.get('scenario_text')!r}, not {spec.scenario_text!r}); "
+                "use another --out"
+            )
+    finished = set(done)
     todo = [s for s in specs if s.run_id not in finished]
     skipped = len(specs) - len(todo)
     if progress:
@@ -269,6 +285,7 @@ def RunCampaign(
             duration=duration,
             variants=VARIANTS,
             people=PEOPLE_MODELS + (AS_SCENARIO,),
+            scenario_text=scenario_text,
         )
     }
     rows = [r for r in ReadRows(csv_path) if r["run_id"] in wanted]

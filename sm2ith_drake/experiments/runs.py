@@ -58,6 +58,7 @@ def PlanRuns(
     duration: float = 0.0,
     variants: tuple | list | None = None,
     people: tuple | list | None = None,
+    scenario_text: str = "",
 ) -> list[RunSpec]:
     """The study's runs: every cell × variant × people model × method × seed,
     every method on the same seeds (paired).
@@ -69,6 +70,9 @@ def PlanRuns(
         variants: safety variants (default: the study's), from VARIANTS.
         people: people models (default: the study's), from PEOPLE_MODELS
             (or "scenario": the scenario's own behaviours).
+        scenario_text: YAML applied to every run under the method's and the
+            variant's overrides (which win where they overlap): one change,
+            made alike for every method, e.g. '{safety: {guard_gap: 0.1}}'.
     """
     variants = tuple(study.variants if variants is None else variants)
     people = tuple(study.people if people is None else people)
@@ -88,7 +92,9 @@ def PlanRuns(
         for variant in variants:
             for model in people:
                 for method in study.methods:
-                    text = MergeYaml(method.scenario_text, VariantText(variant))
+                    text = MergeYaml(
+                        scenario_text, method.scenario_text, VariantText(variant)
+                    )
                     for seed in range(seeds):
                         specs.append(
                             RunSpec(
