@@ -144,6 +144,77 @@ def test_social_force_wall_pushes_away():
     assert v2[0, 1] > 0 and abs(v2[0, 0]) < 1e-9
 
 
+def test_social_force_robot_disc_is_the_nearest_point_model_with_the_base():
+    """Pushing from the base disc, or from per-person robot points that are
+    all the base's centre, is the same step; a nearer point pushes harder."""
+    p = np.array([[0.0, 0.9], [1.0, -0.8], [3.0, 3.0]])
+    v = np.array([[0.0, -1.0], [0.0, 1.0], [0.5, 0.0]])
+    goals = np.array([[0.0, -3.0], [1.0, 3.0], [5.0, 3.0]])
+    radii = np.array([0.3, 0.3, 0.3])
+    disc = social_force_step(
+        p, v, goals, radii, dt=0.05, robot_position=[0.2, 0.0], robot_radius=0.4
+    )
+    points = social_force_step(
+        p,
+        v,
+        goals,
+        radii,
+        dt=0.05,
+        robot_points=np.tile([0.2, 0.0], (3, 1)),
+        robot_point_radii=np.full(3, 0.4),
+    )
+    np.testing.assert_array_equal(disc[1], points[1])
+    # Person 0's nearest robot point moved under them: pushed up harder.
+    nearer = social_force_step(
+        p,
+        v,
+        goals,
+        radii,
+        dt=0.05,
+        robot_points=np.array([[0.0, 0.5], [0.2, 0.0], [0.2, 0.0]]),
+        robot_point_radii=np.array([0.05, 0.4, 0.4]),
+    )
+    assert nearer[1][0, 1] > points[1][0, 1] + 0.1
+    np.testing.assert_array_equal(nearer[1][1:], points[1][1:])
+
+
+def test_social_force_people_keep_off_an_arm_sticking_out():
+    """A robot (base disc 0.3 m at the origin) holds an arm 1.5 m out
+    along +x; a social-force person walks across the arm at x = 1.1. Pushed
+    only by the base they walk through the arm; pushed by the nearest body
+    they keep off it (here they stop in front of it: the social force model
+    does not plan a way round a static obstacle across its path)."""
+    arm = (np.array([[[0.0, 0.0], [1.5, 0.0]]]), np.array([0.05]))
+    person = HumanConfig(
+        behavior="social_force", start=[1.1, 2.5], waypoints=[[1.1, -2.5]], speed=1.0
+    )
+
+    def closest(bodies):
+        state = InitialCrowdState([person])
+        gap = np.inf
+        for i in range(200):
+            state = StepCrowd(
+                [person],
+                state,
+                time=0.05 * i,
+                dt=0.05,
+                robot_position=[0.0, 0.0],
+                robot_velocity=[0.0, 0.0],
+                robot_radius=0.3,
+                robot_bodies=bodies,
+                obstacle_segments=np.zeros((0, 2, 2)),
+                tau=2.0,
+                tau_obs=0.5,
+            )
+            x, y = state.positions[0]
+            along = np.clip(x, 0.0, 1.5)
+            gap = min(gap, np.hypot(x - along, y) - 0.05 - person.radius)
+        return gap
+
+    assert closest(None) < -0.25  # straight through the arm
+    assert closest(arm) > -0.05
+
+
 def _Crowd(humans, steps, robot=(10.0, 10.0), obstacles=()):
     state = InitialCrowdState(humans)
     trace = [state.positions.copy()]

@@ -195,6 +195,17 @@ def _RobotAgents(position, robot_position, robot_radius, robot_bodies):
     return np.array(robot_p, dtype=float), np.array(robot_r, dtype=float)
 
 
+def _NearestRobotPoint(position, robot_position, robot_radius, robot_bodies):
+    """The robot's point nearest to a person at ``position`` and its radius:
+    the base disc's centre, or the nearest body's closest axis point where
+    that body's surface is nearer."""
+    if robot_bodies is not None:
+        point, r, gap = _NearestBody(position, robot_bodies)
+        if gap < np.linalg.norm(position - robot_position) - robot_radius:
+            return point, r
+    return robot_position, robot_radius
+
+
 def _InstructedVelocity(
     h,
     position,
@@ -367,16 +378,20 @@ def StepCrowd(
             preferred[j] = v_pref[j]
     if social:
         # Everyone moves in the model (so the social-force people are pushed
-        # by all the others); only their own rows are kept.
+        # by all the others); only their own rows are kept. Each is pushed
+        # by the robot's point nearest to them (base disc or a body).
+        nearest = [
+            _NearestRobotPoint(p[j], robot_position, robot_radius, robot_bodies)
+            for j in range(H)
+        ]
         _, sv = social_force_step(
             p,
             v,
             goals,
             radii,
             dt=dt,
-            robot_position=robot_position,
-            robot_velocity=robot_velocity,
-            robot_radius=robot_radius,
+            robot_points=np.array([point for point, _ in nearest]),
+            robot_point_radii=np.array([r for _, r in nearest]),
             obstacles=[tuple(s) for s in obstacle_segments],
             max_speeds=np.array([max(h.speed, 1e-3) for h in humans]),
         )

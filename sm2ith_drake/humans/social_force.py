@@ -54,12 +54,20 @@ def social_force_step(
     robot_position=None,
     robot_velocity=None,
     robot_radius=0.0,
+    robot_points=None,
+    robot_point_radii=None,
     obstacles=(),
     max_speeds=None,
     params: SocialForceParams | None = None,
 ):
     """One explicit step of the social force model; returns the new
-    positions and velocities (H, 2)."""
+    positions and velocities (H, 2).
+
+    The robot pushes each person like another person: from
+    ``robot_position`` with ``robot_radius`` (its base disc), or, given
+    ``robot_points`` (H, 2) and ``robot_point_radii`` (H,), from the point
+    of the robot nearest to each person (so an arm sticking out pushes too,
+    as a wall does from its closest point)."""
     params = params or SocialForceParams()
     p = np.asarray(positions, dtype=float).reshape(-1, 2)
     v = np.asarray(velocities, dtype=float).reshape(-1, 2)
@@ -73,22 +81,29 @@ def social_force_step(
     # Slow down over the last metre so people stop at their goals.
     desired = e * (v0 * np.minimum(1.0, dist_goal))[:, None]
     force = (desired - v) / params.relaxation_time
-    others_p = [p]
-    others_r = [radii]
-    if robot_position is not None:
-        others_p.append(np.asarray(robot_position, dtype=float).reshape(1, 2))
-        others_r.append(np.array([robot_radius]))
-    op = np.concatenate(others_p)
-    orad = np.concatenate(others_r)
-    diff = p[:, None, :] - op[None, :, :]  # (H, H+1, 2)
+    # People and the robot: (H, H + 1) pairs, the robot last — its base
+    # disc, or per person its nearest point.
+    if robot_points is not None:
+        rp = np.asarray(robot_points, dtype=float).reshape(H, 2)
+        rr = np.asarray(robot_point_radii, dtype=float).reshape(H)
+    elif robot_position is not None:
+        rp = np.broadcast_to(np.asarray(robot_position, dtype=float)[:2], (H, 2))
+        rr = np.full(H, float(robot_radius))
+    else:
+        rp, rr = np.full((H, 2), np.inf), np.zeros(H)  # no robot
+    op = np.concatenate([np.broadcast_to(p[None], (H, H, 2)), rp[:, None]], axis=1)
+    diff = p[:, None, :] - op  # (H, H+1, 2)
     d = np.linalg.norm(diff, axis=-1)
-    n = diff / np.maximum(d, 1e-9)[..., None]
-    r = radii[:, None] + orad[None, :]
+    finite = np.isfinite(d)
+    d = np.where(finite, d, 1.0)
+    n = np.where(finite[..., None], diff, 0.0) / np.maximum(d, 1e-9)[..., None]
+    r = radii[:, None] + np.concatenate(
+        [np.broadcast_to(radii, (H, H)), rr[:, None]], 1
+    )
     mag = params.strength * np.exp((r - d) / params.range)
     mag += params.contact * np.maximum(r - d, 0.0)
-    self_pair = np.zeros_like(d, dtype=bool)
-    self_pair[np.arange(H), np.arange(H)] = True
-    mag[self_pair] = 0.0
+    mag[~finite] = 0.0
+    mag[np.arange(H), np.arange(H)] = 0.0  # nobody pushes themselves
     force += np.sum(mag[..., None] * n, axis=1)
     for segment in obstacles:
         a, b = np.asarray(segment, dtype=float)[0], np.asarray(segment, dtype=float)[1]
