@@ -327,16 +327,7 @@ def test_guard_holds_over_its_steps_against_a_person_who_does_not_yield():
             safety=safety,
         )
         targets = {t.name: np.asarray(t.target, dtype=float) for t in controller.tasks}
-        state = controller.Step(
-            controller.InitialState(),
-            time_now=0.0,
-            q0=q0,
-            nu0=nu0,
-            targets=targets,
-            prediction=_Predict(controller, person, q0, nu0),
-        )
-        assert state.record.mode == "solved"
-        plan = state.plan
+        plan = _FirstStep(controller, person, q0, nu0, targets).plan
         # h against the person walking on at the measured velocity.
         k = np.arange(len(plan.q))[:, None]
         P = ahead[None] + controller.period * k * walking[None]
@@ -399,15 +390,7 @@ def test_static_guard_keeps_the_robot_from_following_a_person_who_leaves(predict
         for name in targets:
             if name.startswith("base"):
                 targets[name][:2] = ahead + [3.0, 0.0]
-        state = controller.Step(
-            controller.InitialState(),
-            time_now=0.0,
-            q0=q0,
-            nu0=nu0,
-            targets=targets,
-            prediction=_Predict(controller, leaving, q0, nu0),
-        )
-        assert state.record.mode == "solved"
+        state = _FirstStep(controller, leaving, q0, nu0, targets)
         cbf = controller.program.cbf
         assert cbf.static_guard_steps == static_guard_steps
         # h against the person standing where measured.
@@ -419,6 +402,21 @@ def test_static_guard_keeps_the_robot_from_following_a_person_who_leaves(predict
         assert h[k + 1] >= a * h[k] - 2e-3, (k, h[:3])
     h0 = plan(0)
     assert min(h0[1] - a * h0[0], h0[2] - a * h0[1]) < -1e-2, h0[:3]
+
+
+def _FirstStep(controller, estimate, q0, nu0, targets):
+    """The controller's first step with the people of ``estimate``; it must
+    solve."""
+    state = controller.Step(
+        controller.InitialState(),
+        time_now=0.0,
+        q0=q0,
+        nu0=nu0,
+        targets=targets,
+        prediction=_Predict(controller, estimate, q0, nu0),
+    )
+    assert state.record.mode == "solved"
+    return state
 
 
 def _Predict(controller, estimate, q0=None, nu0=None):
