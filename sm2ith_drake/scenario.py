@@ -94,6 +94,12 @@ class ControllerConfig:
     rti_iterations: int = 1
     rti_prediction_tolerance: float = 5e-3
     rti_constraint_tolerance: float = 1e-3
+    # Optional (off by default): apply the pass rule above already after a
+    # non-final pass's first stage; when that stage's plan fails it, the
+    # pass's lower stages are skipped and the next pass linearizes at that
+    # plan (one QP fewer in a step that needs two passes). Deterministic,
+    # like the rule itself; it changes where the second pass linearizes.
+    rti_early_pass_check: bool = False
     # Damping ½ρ‖z − z̄‖² toward the linearization point (the shifted previous
     # plan) in every RTI QP, as in Levenberg–Marquardt: it keeps single QP
     # steps where the linearization holds (near arm singularities, at the

@@ -275,6 +275,50 @@ def test_second_rti_pass_runs_exactly_when_predictions_have_not_converged():
     assert {r.passes for r in always.log.records if r.mode == "solved"} == {2}
 
 
+@pytest.mark.parametrize("early", [False, True])
+def test_early_pass_check_skips_the_lower_stages_of_a_pass_that_failed(
+    early, monkeypatch
+):
+    """With rti_prediction_tolerance 0 every pass fails the pass rule, so
+    with rti_early_pass_check the first pass stops after its first stage:
+    3 stage QPs a step instead of 4, and every step still ends solved by
+    both passes' stages."""
+    from sm2ith_drake.control.rti_solver import RtiStageSolver
+
+    calls = []
+    solve = RtiStageSolver.Solve
+
+    def counted(self, point, **kw):
+        calls.append(self.stage.name)
+        return solve(self, point, **kw)
+
+    monkeypatch.setattr(RtiStageSolver, "Solve", counted)
+    text = (
+        "{controller: {rti_iterations: 2, rti_prediction_tolerance: 0, "
+        f"rti_early_pass_check: {str(early).lower()}}}}}"
+    )
+    _, result = _run(
+        "crossing_ridgeback_ur10_3h",
+        text,
+        filename=GetDiagramsDir() / "crossing.scenarios.yaml",
+        duration=1.0,
+    )
+    solved = [r for r in result.log.records if r.mode == "solved"]
+    steps = len(result.log.records)
+    assert len(solved) == steps and steps >= 5
+    assert {r.passes for r in solved} == {2}
+    assert {r.status for r in solved} == {"solved"}
+    # Stage QPs per step: (first, [lower,] first, lower). The simulation's
+    # last instant also steps the controller, after the log's last record.
+    stages = [calls[0], calls[-1]]
+    per_step = [stages[0], stages[0], stages[1]]
+    if not early:
+        per_step.insert(1, stages[1])
+    assert stages[0] != stages[1]
+    assert len(calls) in (steps * len(per_step), (steps + 1) * len(per_step))
+    assert calls == per_step * (len(calls) // len(per_step))
+
+
 @pytest.mark.parametrize(
     "predictor, safe_text",
     [

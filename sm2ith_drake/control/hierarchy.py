@@ -74,6 +74,7 @@ class HierarchicalSolver:
         rti_proximal_weight: float = 1.0,
         rti_prediction_tolerance: float = 0.0,
         rti_constraint_tolerance: float = 0.0,
+        rti_early_pass_check: bool = False,
     ):
         self.program = program
         self.method = method
@@ -82,6 +83,7 @@ class HierarchicalSolver:
         self.rti_iterations = max(1, int(rti_iterations))
         self.rti_prediction_tolerance = float(rti_prediction_tolerance)
         self.rti_constraint_tolerance = float(rti_constraint_tolerance)
+        self.rti_early_pass_check = bool(rti_early_pass_check)
         self.stages = MakeStages(program.tasks, method)
         options = solver_options if solver_options is not None else SolverOptions()
         if solver == "rti":
@@ -133,7 +135,13 @@ class HierarchicalSolver:
             else:
                 point = program.MakePoint(z, targets)
             checked = None
-            z_pass, ok, why, pass_results = self._SolveHierarchy(point, lower, upper)
+            # With the early check, a non-final pass may stop after its
+            # first stage (``cut``: that stage's plan already fails the
+            # pass rule, and ``checked`` is its point if the rule made one).
+            early = targets if self.rti_early_pass_check and it + 1 < passes else None
+            z_pass, ok, why, pass_results, cut = self._SolveHierarchy(
+                point, lower, upper, early_targets=early
+            )
             if iterations >= 0 and all(r.iterations >= 0 for r in pass_results):
                 iterations += sum(r.iterations for r in pass_results)
             else:
@@ -144,6 +152,9 @@ class HierarchicalSolver:
                 break
             z, results, status = z_pass, pass_results, why
             passes_run = it + 1
+            if cut is not None:
+                checked = cut[1]
+                continue
             if it + 1 < passes:
                 converged, checked = self._Converged(z, targets)
                 if converged:
@@ -185,8 +196,12 @@ class HierarchicalSolver:
         violation = self.program.SafetyViolation(point)
         return violation <= self.rti_constraint_tolerance, point
 
-    def _SolveHierarchy(self, point, lower, upper):
-        """One pass of every stage at one linearization point."""
+    def _SolveHierarchy(self, point, lower, upper, early_targets=None):
+        """One pass of every stage at one linearization point. With
+        ``early_targets``, the pass rule (:meth:`_Converged`) is applied to
+        the first stage's plan, and a plan that fails it ends the pass there.
+        Returns (z, ok, status, results, cut): cut is None, or (True, the
+        checked LinearizationPoint or None) when the pass ended early."""
         linearizations: dict = {}
         lex_bounds: dict = {}
         results: list[StageResult] = []
@@ -203,17 +218,31 @@ class HierarchicalSolver:
             if not result.success:
                 why = f"stage '{stage.name}': {result.status}"
                 if len(results) == 1:
-                    return z, False, why, results
+                    return z, False, why, results, None
                 # The plan of the stages above meets every hard constraint
                 # (dynamics, limits, barriers) and their priorities; only
                 # this and the lower tasks go unoptimized this step.
                 previous = self.stages[len(results) - 2].name
                 why = f"solved through '{previous}' ({why})"
-                return z, True, why, results[:-1]
+                return z, True, why, results[:-1], None
             z = result.z
+            if early_targets is not None and len(results) < len(self.stages):
+                early_targets, targets = None, early_targets  # the first only
+                converged, checked = self._Converged(z, targets)
+                if not converged:
+                    return (
+                        z,
+                        True,
+                        f"solved through '{stage.name}'",
+                        results,
+                        (
+                            True,
+                            checked,
+                        ),
+                    )
             # Eq. stmpc_lex_constr for every later stage.
             for task, _ in stage.cost_tasks:
                 lex_bounds[task.name] = LexicographicBounds(
                     result.errors[task.name], self.tolerance
                 )
-        return z, True, "solved", results
+        return z, True, "solved", results, None

@@ -179,6 +179,7 @@ class MpcController:
             rti_proximal_weight=config.rti_proximal_weight,
             rti_prediction_tolerance=config.rti_prediction_tolerance,
             rti_constraint_tolerance=config.rti_constraint_tolerance,
+            rti_early_pass_check=config.rti_early_pass_check,
         )
         self.safety = safety or SafetyConfig()
         self.period = ControlPeriod(config)
