@@ -94,15 +94,21 @@ class ControllerConfig:
     rti_iterations: int = 1
     rti_prediction_tolerance: float = 5e-3
     rti_constraint_tolerance: float = 1e-3
-    # Apply the pass rule above already after a non-final pass's first
-    # stage; when that stage's plan fails it, the pass's lower stages are
-    # skipped and the next pass linearizes at that plan (one QP fewer in a
-    # step that needs two passes). Deterministic, like the rule itself.
-    # Measured (bench, 2026-11-24, one run each, off → on): 10 people
-    # median 270 → 211 ms (Ridgeback–UR10) and 193 → 148 ms (Stretch 3);
-    # 3 people p95 90 → 74 and 73 → 57 ms, max 118 → 91 and 76 → 87 ms,
-    # median +1 to +2 ms; KKT faithfulness 99.16 → 99.01 % within 1e-2 m/s.
-    rti_early_pass_check: bool = True
+    # Optional (off by default): apply the pass rule above already after a
+    # non-final pass's first stage; when that stage's plan fails it, the
+    # pass's lower stages are skipped and the next pass linearizes at that
+    # plan (one QP fewer in a step that needs two passes, but the lower
+    # stages then get one linearization instead of two). Deterministic,
+    # like the rule itself. Measured (bench, 2026-11-24, three runs, off →
+    # on): 10 people median 256–264 → 200–205 ms (Ridgeback–UR10) and
+    # 178–184 → 141–144 ms (Stretch 3); 3 people p95 87–91 → 71–75 and
+    # 65–71 → 54–59 ms, median +1 to +3 ms; KKT faithfulness 99.16 → 99.01 %
+    # within 1e-2 m/s. On the head-on study (120 runs) SM²ITH lost 6 runs
+    # that had reached the goal and gained 1 (stalled 0.26–0.5 m short of
+    # it after turning round for the person), and the EE errors grew ~4 %:
+    # not the default until the studies show it changes nothing beyond
+    # seed noise (README, Benchmark).
+    rti_early_pass_check: bool = False
     # Damping ½ρ‖z − z̄‖² toward the linearization point (the shifted previous
     # plan) in every RTI QP, as in Levenberg–Marquardt: it keeps single QP
     # steps where the linearization holds (near arm singularities, at the
