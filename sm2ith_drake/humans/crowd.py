@@ -196,9 +196,8 @@ def _RobotAgents(position, robot_position, robot_radius, robot_bodies):
 
 
 def _NearestRobotPoint(position, robot_position, robot_radius, robot_bodies):
-    """The robot's point nearest to a person at ``position`` and its radius:
-    the base disc's centre, or the nearest body's closest axis point where
-    that body's surface is nearer."""
+    """The robot's point nearest to ``position`` and its radius: the base
+    disc's centre, or the nearest body's axis point if that is nearer."""
     if robot_bodies is not None:
         point, r, gap = _NearestBody(position, robot_bodies)
         if gap < np.linalg.norm(position - robot_position) - robot_radius:
@@ -377,13 +376,11 @@ def StepCrowd(
             )
             preferred[j] = v_pref[j]
     if social:
-        # Everyone moves in the model (so the social-force people are pushed
-        # by all the others); only their own rows are kept. Each is pushed
-        # by the robot's point nearest to them (base disc or a body).
-        nearest = [
-            _NearestRobotPoint(p[j], robot_position, robot_radius, robot_bodies)
-            for j in range(H)
-        ]
+        # Everyone moves in the model (the social-force people are pushed by
+        # all the others and the robot's point nearest to them); only their
+        # own rows are kept.
+        robot = (robot_position, robot_radius, robot_bodies)
+        nearest = [_NearestRobotPoint(p[j], *robot) for j in range(H)]
         _, sv = social_force_step(
             p,
             v,
