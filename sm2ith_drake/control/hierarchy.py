@@ -137,9 +137,9 @@ class HierarchicalSolver:
             checked = None
             # With the early check, a non-final pass may stop after its
             # first stage (``cut``: that stage's plan already fails the
-            # pass rule, and ``checked`` is its point if the rule made one).
+            # pass rule; ``cut_point`` is its point if the rule made one).
             early = targets if self.rti_early_pass_check and it + 1 < passes else None
-            z_pass, ok, why, pass_results, cut = self._SolveHierarchy(
+            z_pass, ok, why, pass_results, cut, cut_point = self._SolveHierarchy(
                 point, lower, upper, early_targets=early
             )
             if iterations >= 0 and all(r.iterations >= 0 for r in pass_results):
@@ -152,8 +152,8 @@ class HierarchicalSolver:
                 break
             z, results, status = z_pass, pass_results, why
             passes_run = it + 1
-            if cut is not None:
-                checked = cut[1]
+            if cut:
+                checked = cut_point
                 continue
             if it + 1 < passes:
                 converged, checked = self._Converged(z, targets)
@@ -200,8 +200,9 @@ class HierarchicalSolver:
         """One pass of every stage at one linearization point. With
         ``early_targets``, the pass rule (:meth:`_Converged`) is applied to
         the first stage's plan, and a plan that fails it ends the pass there.
-        Returns (z, ok, status, results, cut): cut is None, or (True, the
-        checked LinearizationPoint or None) when the pass ended early."""
+        Returns (z, ok, status, results, cut, point): cut says the pass
+        ended early, point is then the LinearizationPoint the rule made of
+        z (or None)."""
         linearizations: dict = {}
         lex_bounds: dict = {}
         results: list[StageResult] = []
@@ -218,31 +219,23 @@ class HierarchicalSolver:
             if not result.success:
                 why = f"stage '{stage.name}': {result.status}"
                 if len(results) == 1:
-                    return z, False, why, results, None
+                    return z, False, why, results, False, None
                 # The plan of the stages above meets every hard constraint
                 # (dynamics, limits, barriers) and their priorities; only
                 # this and the lower tasks go unoptimized this step.
                 previous = self.stages[len(results) - 2].name
                 why = f"solved through '{previous}' ({why})"
-                return z, True, why, results[:-1], None
+                return z, True, why, results[:-1], False, None
             z = result.z
             if early_targets is not None and len(results) < len(self.stages):
                 early_targets, targets = None, early_targets  # the first only
                 converged, checked = self._Converged(z, targets)
                 if not converged:
-                    return (
-                        z,
-                        True,
-                        f"solved through '{stage.name}'",
-                        results,
-                        (
-                            True,
-                            checked,
-                        ),
-                    )
+                    why = f"solved through '{stage.name}'"
+                    return z, True, why, results, True, checked
             # Eq. stmpc_lex_constr for every later stage.
             for task, _ in stage.cost_tasks:
                 lex_bounds[task.name] = LexicographicBounds(
                     result.errors[task.name], self.tolerance
                 )
-        return z, True, "solved", results, None
+        return z, True, "solved", results, False, None
