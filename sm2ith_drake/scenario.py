@@ -282,11 +282,12 @@ class SafetyConfig:
     # barrier's margin is not closed in on by trusting a prediction that
     # has them give way. A person who keeps not yielding by less than
     # guard_deviation per step is otherwise never held, and the plan can
-    # creep into them (the doorway study: 36 cm in one run). With 0.1 that
-    # run's contact was 6.7 cm, but in a first check on 20 doorway runs 2
-    # that had reached the goal no longer did (2 others now did) and no
-    # fewer touched anyone; not yet the default (README, "Contact in the
-    # safe variant").
+    # creep into them (the doorway study: 36 cm in one run). With 0.1 on the
+    # doorway (Stretch 3, ORCA people, seeds 0–9, 1/2/3/5 people, 40 runs):
+    # as many arrivals (21), as many runs with contact (20 vs 19), fewer
+    # with the robot closing in (13 vs 16), the deepest contact 2.7 cm
+    # instead of 10 cm. Not yet the default: measured on that cell only
+    # (README, "Contact in the safe variant").
     guard_gap: float = 0.0
     # Optional (0: off, the default): also hold the barrier over the first
     # static_guard_steps steps against every tracked person standing still
