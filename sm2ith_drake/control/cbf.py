@@ -187,7 +187,6 @@ class DtCbfGroup(ConstraintGroup):
         p = np.array(positions, dtype=float).reshape(-1, 2)
         v = np.array(velocities, dtype=float).reshape(-1, 2)
         self.static_p0 = _OutOfReach(p, active)
-        v = v.copy()
         if guarded is not None:
             v[~np.asarray(guarded, dtype=bool)] = 0.0
         self.guard_p0, self.guard_v0 = _OutOfReach(p, guarded), v

@@ -227,9 +227,9 @@ class HierarchicalSolver:
                 why = f"solved through '{previous}' ({why})"
                 return z, True, why, results[:-1], False, None
             z = result.z
-            if early_targets is not None and len(results) < len(self.stages):
-                early_targets, targets = None, early_targets  # the first only
-                converged, checked = self._Converged(z, targets)
+            first_of_several = len(results) == 1 < len(self.stages)
+            if early_targets is not None and first_of_several:
+                converged, checked = self._Converged(z, early_targets)
                 if not converged:
                     why = f"solved through '{stage.name}'"
                     return z, True, why, results, True, checked

@@ -52,7 +52,6 @@ def social_force_step(
     *,
     dt,
     robot_position=None,
-    robot_velocity=None,
     robot_radius=0.0,
     robot_points=None,
     robot_point_radii=None,
@@ -81,8 +80,9 @@ def social_force_step(
     # Slow down over the last metre so people stop at their goals.
     desired = e * (v0 * np.minimum(1.0, dist_goal))[:, None]
     force = (desired - v) / params.relaxation_time
-    # People and the robot: (H, H + 1) pairs, the robot last — its base
-    # disc, or per person its nearest point.
+    # Who pushes person i: every person, then (if any) the robot — its base
+    # disc, or per person its nearest point. (H, H or H + 1).
+    op, orad = np.broadcast_to(p[None], (H, H, 2)), np.broadcast_to(radii, (H, H))
     if robot_points is not None:
         rp = np.asarray(robot_points, dtype=float).reshape(H, 2)
         rr = np.asarray(robot_point_radii, dtype=float).reshape(H)
@@ -90,19 +90,16 @@ def social_force_step(
         rp = np.broadcast_to(np.asarray(robot_position, dtype=float)[:2], (H, 2))
         rr = np.full(H, float(robot_radius))
     else:
-        rp, rr = np.full((H, 2), np.inf), np.zeros(H)  # no robot
-    op = np.concatenate([np.broadcast_to(p[None], (H, H, 2)), rp[:, None]], axis=1)
-    diff = p[:, None, :] - op  # (H, H+1, 2)
+        rp = None
+    if rp is not None:
+        op = np.concatenate([op, rp[:, None]], axis=1)
+        orad = np.concatenate([orad, rr[:, None]], axis=1)
+    diff = p[:, None, :] - op
     d = np.linalg.norm(diff, axis=-1)
-    finite = np.isfinite(d)
-    d = np.where(finite, d, 1.0)
-    n = np.where(finite[..., None], diff, 0.0) / np.maximum(d, 1e-9)[..., None]
-    r = radii[:, None] + np.concatenate(
-        [np.broadcast_to(radii, (H, H)), rr[:, None]], 1
-    )
+    n = diff / np.maximum(d, 1e-9)[..., None]
+    r = radii[:, None] + orad
     mag = params.strength * np.exp((r - d) / params.range)
     mag += params.contact * np.maximum(r - d, 0.0)
-    mag[~finite] = 0.0
     mag[np.arange(H), np.arange(H)] = 0.0  # nobody pushes themselves
     force += np.sum(mag[..., None] * n, axis=1)
     for segment in obstacles:
