@@ -761,6 +761,40 @@ def test_driver_follows_commands_then_its_watchdog_brakes():
     assert state["state"][robot.num_positions] == pytest.approx(0.0, abs=1e-9)
 
 
+def test_driver_starts_phase_triggered_people_with_its_own_planner():
+    """People who start when the robot enters a phase (pick-and-place's
+    crossings) need the task phase; the driver follows the scenario's
+    sequence on its robot's true state. Without commands the robot stays in
+    the first phase: its person walks, the second phase's person waits."""
+    from pydrake.lcm import DrakeLcm
+    from pydrake.systems.analysis import Simulator
+
+    from sm2ith_drake.diagrams.driver import MakeDriverDiagram
+    from sm2ith_drake.scenario import HumanConfig, PhaseConfig
+
+    scenario = _Scenario()
+    scenario.sequence = [
+        PhaseConfig(name="drive", targets={"base_position": [1.5, 0.0]}),
+        PhaseConfig(name="reach", targets={"base_position": [1.5, 1.0]}),
+    ]
+    scenario.humans = [
+        HumanConfig(behavior="scripted", start=[3.0, -2.0], waypoints=[[3.0, 2.0]],
+                    speed=1.0, start_phase=phase)
+        for phase in ("drive", "reach")
+    ]  # fmt: skip
+    driver = MakeDriverDiagram(scenario=scenario, lcm=DrakeLcm("memq://"))
+    assert driver.HasSubsystemNamed("planner")
+    sim = Simulator(driver)
+    sim.Initialize()
+    sim.AdvanceTo(1.0)
+    crowd = driver.GetSubsystemByName("crowd")
+    truth = crowd.GetOutputPort("human_truth").Eval(crowd.GetMyContextFromRoot(
+        sim.get_context()))  # fmt: skip
+    positions = np.asarray(truth.positions)
+    assert positions[0, 1] > -1.5  # walked about 1 m
+    np.testing.assert_allclose(positions[1], [3.0, -2.0])
+
+
 def test_driver_walks_relaxed_orca_people_from_a_scenario(tmp_path):
     """`sm2ith driver --humans FILE:NAME` with people who walk as SM²ITH's
     prediction model says (relaxed_orca, which needs that model): the driver

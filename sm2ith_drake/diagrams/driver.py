@@ -16,7 +16,10 @@ without a robot:
   helpers as in the simulation (:func:`AddCrowd`, :func:`AddMocap`: scripted,
   ORCA, relaxed ORCA, social force, adversarial; they see the simulated
   robot), measured with noise and dropouts and published every
-  ``perception.period``.
+  ``perception.period``. With a task sequence, the driver runs its own
+  TaskPlanner on the simulated robot's state, so people who start when the
+  robot enters a phase (``start_phase``, ``waypoint_phases``) do so as in the
+  simulation.
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ from pydrake.systems.lcm import (
 )
 
 from sm2ith_drake.control.cbf import ObstacleSegments
+from sm2ith_drake.control.tasks import MakeTask
 from sm2ith_drake.diagrams.hardware import AddLcmPublisher
 from sm2ith_drake.diagrams.people import AddCrowd, AddMocap
 from sm2ith_drake.lcm.codecs import RawLcmMessage
@@ -43,6 +47,7 @@ from sm2ith_drake.lcm.sm2ith_lcmtypes import (
 from sm2ith_drake.lcm.timing import CommandMonitor
 from sm2ith_drake.scenario import ControlPeriod, Scenario
 from sm2ith_drake.scenario_loader import MakeRobot
+from sm2ith_drake.systems.planner import TaskPlanner
 from sm2ith_drake.systems.robot import KinematicRobot
 
 
@@ -65,7 +70,9 @@ def MakeDriverDiagram(*, scenario: Scenario, lcm, robot=None):
     Returns:
         A Diagram named ``sm2ith_driver_<robot>`` with subsystems ``robot``
         (KinematicRobot), ``command.receiver``, ``command.follower``,
-        ``command.monitor`` and (with people) ``crowd`` and ``mocap``.
+        ``command.monitor``, (with people) ``crowd`` and ``mocap``, and
+        (with people and a task sequence) ``planner``, the TaskPlanner that
+        tells the crowd which phase the robot is in.
     """
 
     hardware = scenario.hardware
@@ -141,6 +148,23 @@ def MakeDriverDiagram(*, scenario: Scenario, lcm, robot=None):
         builder.Connect(
             sim_robot.GetOutputPort("state"), crowd.GetInputPort("robot_state")
         )
+        if scenario.sequence:
+            # The controller's planner is on the other side of LCM; this one
+            # follows the same sequence on the robot's true state.
+            tasks = [MakeTask(t, n) for t in scenario.tasks]
+            planner = builder.AddNamedSystem(
+                "planner",
+                TaskPlanner(
+                    tasks, num_states=n + m, robot=robot, sequence=scenario.sequence
+                ),
+            )
+            builder.Connect(
+                sim_robot.GetOutputPort("state"), planner.GetInputPort("robot_state")
+            )
+            builder.Connect(
+                planner.GetOutputPort("task_references"),
+                crowd.GetInputPort("task_references"),
+            )
         mocap = AddMocap(builder, scenario)
         builder.Connect(
             crowd.GetOutputPort("human_truth"), mocap.GetInputPort("human_truth")
