@@ -213,6 +213,15 @@ class PredictionConfig:
     complementarity_relaxation: float = 1e-5
     # Maximum number of humans the controller tracks (the program's size).
     max_humans: int = 3
+    # People beyond max_humans (more tracked than slots): the nearest
+    # max_humans get the slots (a newcomer takes an incumbent's only when
+    # closer to the robot by neighbor_hysteresis), and the nearest
+    # max_extra_humans of the rest are kept out of by the DT-CBF over the
+    # whole horizon, moving on at their measured velocity (held where they
+    # are for React): barrier rows only, no prediction variables, so they
+    # cost a fraction of a slot. Anyone beyond both is not seen by the
+    # controller (counted as dropped).
+    max_extra_humans: int = 0
     # The ORCA model's preferred velocity v_pref of each person: their
     # measured velocity low-pass filtered with this time constant (s), an
     # estimate of where they mean to go that a short swerve around the robot

@@ -225,10 +225,11 @@ def _ValidatePeople(scenario: Scenario) -> None:
         raise ScenarioError(
             f"prediction.predictor '{pr.predictor}'; valid: {', '.join(PREDICTORS)}"
         )
-    if pr.max_humans < len(scenario.humans) and scenario.humans:
+    seen = pr.max_humans + max(pr.max_extra_humans, 0)
+    if seen < len(scenario.humans) and scenario.humans:
         raise ScenarioError(
-            f"prediction.max_humans ({pr.max_humans}) < number of humans "
-            f"({len(scenario.humans)})"
+            f"prediction.max_humans + max_extra_humans ({seen}) < number of "
+            f"humans ({len(scenario.humans)})"
         )
     for name in ("tau", "tau_obs", "max_speed", "max_acceleration"):
         _Positive(getattr(pr, name), f"prediction.{name}")
@@ -238,6 +239,7 @@ def _ValidatePeople(scenario: Scenario) -> None:
         "complementarity_relaxation",
         "preferred_velocity_time_constant",
         "max_neighbors",
+        "max_extra_humans",
         "neighbor_hysteresis",
     ):
         _NonNegative(getattr(pr, name), f"prediction.{name}")

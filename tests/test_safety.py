@@ -404,6 +404,105 @@ def test_static_guard_keeps_the_robot_from_following_a_person_who_leaves(predict
     assert min(h0[1] - a * h0[0], h0[2] - a * h0[1]) < -1e-2, h0[:3]
 
 
+def test_people_beyond_the_slots_go_by_distance_and_extras_keep_a_barrier():
+    """More people tracked than slots: the nearest have the slots, an
+    incumbent keeps its slot against a newcomer nearer by less than the
+    hysteresis, the nearest of the rest are the extras and anyone beyond
+    is dropped; without overflow the slots fill in the estimate's order."""
+    from sm2ith_drake.control.prediction.slots import AssignSlots
+    from sm2ith_drake.humans.messages import HumanEstimate
+
+    estimate = HumanEstimate(
+        ids=[5, 6, 7, 8],
+        positions=[[9.0, 0.0], [1.0, 0.0], [4.0, 0.0], [2.0, 0.0]],
+        velocities=[[0.0, 0.0], [0.1, 0.0], [0.2, 0.0], [0.3, 0.0]],
+    )
+    distances = np.array([9.0, 1.0, 4.0, 2.0])
+    empty = np.full(2, -1)
+    slots = AssignSlots(empty, estimate, {}, distances=distances, num_extra=1)
+    assert slots.slot_ids.tolist() == [6, 8]
+    assert slots.extra_ids.tolist() == [7] and slots.dropped == 1
+    np.testing.assert_allclose(slots.extra_p0, [[4.0, 0.0]])
+    np.testing.assert_allclose(slots.extra_v0, [[0.2, 0.0]])
+    # Incumbents 7 (4 m) and 5 (9 m): 6 (1 m) takes 5's slot, then 8 (2 m)
+    # takes 7's; each is nearer by more than the hysteresis.
+    incumbents = np.array([7, 5])
+    moved = AssignSlots(incumbents, estimate, {}, distances=distances, hysteresis=0.5)
+    assert moved.slot_ids.tolist() == [8, 6]
+    # 8 is 2 m nearer than 7: it takes 7's slot only if 2 m beats it.
+    sticky = AssignSlots(
+        np.array([7, 6]), estimate, {}, distances=distances, hysteresis=2.5
+    )
+    assert sticky.slot_ids.tolist() == [7, 6] and sticky.dropped == 2
+    swapped = AssignSlots(
+        np.array([7, 6]), estimate, {}, distances=distances, hysteresis=1.5
+    )
+    assert swapped.slot_ids.tolist() == [8, 6]
+    # Enough slots: the estimate's order, whatever the distances.
+    roomy = AssignSlots(np.full(4, -1), estimate, {}, distances=distances)
+    assert roomy.slot_ids.tolist() == [5, 6, 7, 8] and roomy.dropped == 0
+
+
+@pytest.mark.parametrize("predictor", ["cvmm", "orca_kkt"])
+def test_extra_rows_keep_the_robot_from_a_person_without_a_slot(predictor):
+    """One slot, two people: the nearer stands behind the robot and has the
+    slot; the other walks at the robot from ahead. As an extra
+    (max_extra_humans 1) the barrier holds against them walking on over
+    the whole horizon; without extras they are dropped, and the plan drives
+    into where they will be."""
+    import dataclasses
+
+    from sm2ith_drake.control.mpc_controller import MpcController
+    from sm2ith_drake.humans.messages import HumanEstimate
+    from sm2ith_drake.humans.robot_view import HumanDistances
+
+    scenario, robot, _ = _replay_controller()
+    reach = scenario.safety.human_radius + scenario.safety.human_margin
+    a = 1.0 - scenario.safety.gamma
+    q0 = np.array(robot.default_q, dtype=float)
+    nu0 = np.zeros(robot.num_velocities)
+    nu0[0] = 0.5  # driving forward (+x)
+    ahead, behind = np.array([3.0, 0.0]), np.array([-3.0, 0.0])
+    while _Gap0(robot, q0, ahead) - reach > 0.6:
+        ahead[0] -= 0.01
+    while _Gap0(robot, q0, behind) - reach > 0.3:
+        behind[0] += 0.01
+    walking = np.array([-0.6, 0.0])
+    people = HumanEstimate(
+        ids=[1, 2], positions=[ahead, behind], velocities=[walking, [0.0, 0.0]]
+    )
+
+    def plan(extra):
+        prediction = dataclasses.replace(
+            scenario.prediction, predictor=predictor, max_humans=1,
+            max_extra_humans=extra,
+        )  # fmt: skip
+        controller = MpcController(
+            robot,
+            scenario.tasks,
+            scenario.controller,
+            prediction=prediction,
+            safety=dataclasses.replace(scenario.safety, guard_steps=0),
+        )
+        targets = {t.name: np.asarray(t.target, dtype=float) for t in controller.tasks}
+        for name in targets:  # the base's goal lies beyond the walker
+            if name.startswith("base"):
+                targets[name][:2] = ahead + [3.0, 0.0]
+        predicted = _Predict(controller, people, q0, nu0)
+        assert predicted.slot_ids.tolist() == [2]
+        assert predicted.dropped == 1 - extra
+        q = _FirstStep(controller, people, q0, nu0, targets).plan.q
+        k = np.arange(len(q))[:, None]
+        P = ahead[None] + controller.period * k * walking[None]
+        return HumanDistances(robot, q, P[:, None])[:, 0] - reach
+
+    h = plan(1)
+    for k in range(len(h) - 1):
+        assert h[k + 1] >= a * h[k] - 2e-3, (k, h[: k + 2])
+    h0 = plan(0)
+    assert np.min(h0[1:] - a * h0[:-1]) < -1e-2, h0
+
+
 def _FirstStep(controller, estimate, q0, nu0, targets):
     """The controller's first step with the people of ``estimate``; it must
     solve."""

@@ -73,7 +73,12 @@ class DtCbfGroup(ConstraintGroup):
     against each human standing still where measured: a prediction (CVMM's
     or SM²ITH's) that has a person move away never lets the robot close in
     on where they are now faster than the barrier allows, so the robot does
-    not follow someone out of its margin into contact.
+    not follow someone out of its margin into contact. With
+    ``extra_humans`` = E > 0, N × E × C more rows (last) hold the whole
+    horizon against up to E people who have no slot in the program (more
+    people than ``max_humans``), each moving on at its measured velocity
+    (``SetExtra``): they are not predicted interactively, but the robot
+    keeps out of their way as CVMM would.
     """
 
     name = "dt_cbf"
@@ -91,6 +96,7 @@ class DtCbfGroup(ConstraintGroup):
         obstacle_margin,
         guard_steps=0,
         static_guard_steps=0,
+        extra_humans=0,
     ):
         self._robot = robot
         self._layout = layout
@@ -107,13 +113,20 @@ class DtCbfGroup(ConstraintGroup):
         self.rows_per_step = (H + S) * C
         self.guard_steps = int(min(max(guard_steps, 0), N))
         self.static_guard_steps = int(min(max(static_guard_steps, 0), N))
-        # Guard row blocks, in row order: (steps, the moving guard?).
-        self._guards = [(self.guard_steps, True), (self.static_guard_steps, False)]
-        self.num_guard = (self.guard_steps + self.static_guard_steps) * H * C
+        E = self.num_extra = int(max(extra_humans, 0))
+        # Guard row blocks, in row order: (steps, people, which guard).
+        self._guards = [
+            (self.guard_steps, H, "moving"),
+            (self.static_guard_steps, H, "static"),
+            (N if E else 0, E, "extra"),
+        ]
+        self.num_guard = sum(steps * count * C for steps, count, _ in self._guards)
         self.num_rows = N * self.rows_per_step + self.num_guard
         self.guard_p0 = np.zeros((H, 2))
         self.guard_v0 = np.zeros((H, 2))
         self.static_p0 = np.zeros((H, 2))
+        self.extra_p0 = _OutOfReach(np.zeros((E, 2)), np.zeros(E, dtype=bool))
+        self.extra_v0 = np.zeros((E, 2))
         self.guard_dt = 0.0
         row_blocks, col_blocks = [], []
         for k in range(N):
@@ -136,12 +149,12 @@ class DtCbfGroup(ConstraintGroup):
                     row_blocks.append(np.array([base + H * C + s * C + c]))
                     col_blocks.append(np.concatenate([layout.q[k], layout.q[k + 1]]))
         row = N * self.rows_per_step
-        for steps, _ in self._guards:
-            for r in range(steps * H * C):
-                k = r // (H * C)
+        for steps, count, _ in self._guards:
+            for r in range(steps * count * C):
+                k = r // (count * C)
                 row_blocks.append(np.array([row + r]))
                 col_blocks.append(np.concatenate([layout.q[k], layout.q[k + 1]]))
-            row += steps * H * C
+            row += steps * count * C
         # One slack per row under an exact penalty (MpcProgram): zero
         # whenever the hard constraints can be met; when they cannot (a person
         # walking into the robot faster than it can get away), the robot does
@@ -192,13 +205,25 @@ class DtCbfGroup(ConstraintGroup):
         self.guard_p0, self.guard_v0 = _OutOfReach(p, guarded), v
         self.guard_dt = float(time_step)
 
+    def SetExtra(self, positions, velocities, time_step, active):
+        """The people without a slot for the extra rows, (E, 2) each; one
+        not ``active`` (E,) bool is moved out of reach (its rows hold
+        trivially, the QP's pattern stays)."""
+        self.extra_p0 = _OutOfReach(positions, active)
+        self.extra_v0 = np.array(velocities, dtype=float).reshape(-1, 2)
+        self.extra_v0[~np.asarray(active, dtype=bool)] = 0.0
+        self.guard_dt = float(time_step)
+
     def _GuardRows(self, point):
-        """Every guard block's rows (moving, then static) and values."""
+        """Every guard block's rows (moving, static, extra) and values."""
         g, vals = [], []
-        for steps, moving in self._guards:
+        for steps, _, which in self._guards:
             if steps:
-                p0 = self.guard_p0 if moving else self.static_p0
-                v0 = self.guard_v0 if moving else np.zeros_like(p0)
+                p0, v0 = {
+                    "moving": (self.guard_p0, self.guard_v0),
+                    "static": (self.static_p0, np.zeros_like(self.static_p0)),
+                    "extra": (self.extra_p0, self.extra_v0),
+                }[which]
                 gi, vi = self._GuardBlock(point, steps, p0, v0)
                 g.append(gi)
                 vals.append(vi)

@@ -144,6 +144,11 @@ class MpcProgram:
                     and safety.mode == "safe"
                     else 0
                 ),
+                # People beyond the slots, at constant velocity (held for
+                # React), in both safety variants.
+                extra_humans=(
+                    predictor.extra_active.size if predictor is not None else 0
+                ),
             )
             nr = self.cbf.num_rows
             self.extra_constraints.append((self.cbf, np.zeros(nr), np.full(nr, np.inf)))
@@ -203,6 +208,13 @@ class MpcProgram:
                     self.time_step,
                     guarded=self.predictor.guarded,
                     active=self.predictor.active,
+                )
+            if self.cbf is not None and self.cbf.num_extra:
+                self.cbf.SetExtra(
+                    self.predictor.extra_p0,
+                    self.predictor.extra_v0,
+                    self.time_step,
+                    self.predictor.extra_active,
                 )
         return lower, upper
 

@@ -87,8 +87,15 @@ class HumanPrediction:
     # The preferred velocity of every tracked person, by id (also those
     # without a slot); the predictor remembers it for the next step.
     preferred_by_id: dict = field(default_factory=dict)
-    # People tracked but not predicted: no free slot (more than max_humans).
+    # People tracked but not seen by the controller: neither a slot nor an
+    # extra (more than max_humans + max_extra_humans).
     dropped: int = 0
+    # People without a slot whom the DT-CBF keeps out of at constant
+    # velocity (PredictionConfig.max_extra_humans): id (−1: none), measured
+    # position and velocity, (E,), (E, 2), (E, 2).
+    extra_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    extra_positions: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    extra_velocities: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     # Slots whose person the MPC's guard holds (SafetyConfig.guard_deviation)
     # and, by id, for how many more control steps (remembered).
     guarded: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))

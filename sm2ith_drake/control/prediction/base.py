@@ -51,6 +51,11 @@ class Predictor:
         self.v_pref = np.zeros((H, 2))
         self.guarded = np.zeros(H, dtype=bool)
         self.positions = HeldPrediction(self.p0, horizon)
+        # The people without a slot that the barrier keeps out of.
+        E = int(getattr(config, "max_extra_humans", 0))
+        self.extra_active = np.zeros(E, dtype=bool)
+        self.extra_p0 = np.zeros((E, 2))
+        self.extra_v0 = np.zeros((E, 2))
 
     def AddVariables(self, layout) -> None:
         self.layout = layout
@@ -69,6 +74,17 @@ class Predictor:
         self.v_pref = np.asarray(prediction.preferred_velocities, dtype=float)
         guarded = np.asarray(prediction.guarded, dtype=bool)
         self.guarded = guarded if guarded.shape == self.active.shape else self.active
+        E = self.extra_active.size
+        ids = np.asarray(prediction.extra_ids, dtype=int).reshape(-1)
+        self.extra_active = np.zeros(E, dtype=bool)
+        self.extra_p0 = np.zeros((E, 2))
+        self.extra_v0 = np.zeros((E, 2))
+        if ids.size == E:
+            self.extra_active = ids >= 0
+            self.extra_p0 = np.asarray(prediction.extra_positions, dtype=float)
+            # Moving on at their measured velocity; React holds everyone.
+            if self.name != "react":
+                self.extra_v0 = np.asarray(prediction.extra_velocities, dtype=float)
 
     def ApplyBounds(self, lower: np.ndarray, upper: np.ndarray) -> None:
         """Pins the predicted positions (React, CVMM) — in place."""

@@ -116,7 +116,16 @@ class HumanPredictorModel:
         preferred = FilterPreferredVelocities(
             state.preferred_velocities, estimate, intents, self._alpha
         )
-        slots = AssignSlots(state.slot_ids, estimate, preferred)
+        # Who is nearest matters only with more people than slots.
+        crowded = estimate is not None and len(estimate.ids) > self.num_slots
+        slots = AssignSlots(
+            state.slot_ids,
+            estimate,
+            preferred,
+            distances=self._Distances(estimate, q0) if crowded else None,
+            hysteresis=cfg.neighbor_hysteresis,
+            num_extra=cfg.max_extra_humans,
+        )
         neighbors = state.neighbors
         actions = multipliers = None
         if cfg.predictor == "cvmm":
@@ -162,6 +171,9 @@ class HumanPredictorModel:
             multipliers=multipliers,
             preferred_by_id=preferred,
             dropped=slots.dropped,
+            extra_ids=slots.extra_ids,
+            extra_positions=slots.extra_p0,
+            extra_velocities=slots.extra_v0,
             guarded=guarded & slots.active,
             guard_steps_by_id=guards,
             estimate=estimate if estimate is not None else HumanEstimate(),
@@ -169,22 +181,33 @@ class HumanPredictorModel:
         prediction.compute_time = time.perf_counter() - start
         return prediction, NextState(prediction)
 
-    def _Close(self, estimate, q0) -> list:
-        """The ids of the people measured within guard_gap of the robot's
-        nearest body at q0 (none without a finite q0 or with guard_gap 0)."""
-        if self.guard_gap <= 0 or estimate is None or q0 is None:
-            return []
+    def _Distances(self, estimate, q0):
+        """Each estimate entry's distance from the robot's nearest body at
+        q0 to the person's centre (inf where unknown), or None without
+        people or a finite q0."""
+        if estimate is None or q0 is None:
+            return None
         q0 = np.asarray(q0, dtype=float)
         positions = np.asarray(estimate.positions, dtype=float).reshape(-1, 2)
         if not len(positions) or not np.all(np.isfinite(q0)):
-            return []
+            return None
         finite = np.all(np.isfinite(positions), axis=1)
-        gaps = np.full(len(positions), np.inf)
+        distances = np.full(len(positions), np.inf)
         if np.any(finite):
-            gaps[finite] = (
-                HumanDistances(self.robot, q0[None], positions[None, finite])[0]
-                - self.human_radius
-            )
+            distances[finite] = HumanDistances(
+                self.robot, q0[None], positions[None, finite]
+            )[0]
+        return distances
+
+    def _Close(self, estimate, q0) -> list:
+        """The ids of the people measured within guard_gap of the robot's
+        nearest body at q0 (none without a finite q0 or with guard_gap 0)."""
+        if self.guard_gap <= 0:
+            return []
+        distances = self._Distances(estimate, q0)
+        if distances is None:
+            return []
+        gaps = distances - self.human_radius
         return [
             int(i)
             for i, g in zip(estimate.ids, gaps, strict=True)

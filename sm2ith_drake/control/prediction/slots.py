@@ -61,7 +61,12 @@ class HumanSlots:
     p0: np.ndarray  # (H, 2) positions (parked where empty)
     v0: np.ndarray  # (H, 2) velocities (0 where empty)
     v_pref: np.ndarray  # (H, 2) preferred velocities (0 where empty)
-    dropped: int = 0  # tracked people without a free slot
+    dropped: int = 0  # tracked people neither in a slot nor an extra
+    # People without a slot whom the barrier still keeps out of (E of them,
+    # PredictionConfig.max_extra_humans): id (−1: none), position, velocity.
+    extra_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    extra_p0: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    extra_v0: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
 
 
 def FilterPreferredVelocities(
@@ -102,10 +107,20 @@ def AssignSlots(
     previous_slot_ids: np.ndarray,
     estimate: HumanEstimate | None,
     preferred_velocities: dict,
+    *,
+    distances: np.ndarray | None = None,
+    hysteresis: float = 0.0,
+    num_extra: int = 0,
 ) -> HumanSlots:
     """Assigns the tracked humans to slots, stable by id. People with a
     non-finite position, velocity or v_pref are left out; a person's v_pref
-    defaults to the measured velocity."""
+    defaults to the measured velocity.
+
+    With more people than slots, ``distances`` (each estimate entry's
+    distance to the robot; None: unknown) decides who has one: free slots go
+    to the nearest first, and someone without a slot takes the farthest
+    incumbent's when nearer by more than ``hysteresis``. The nearest
+    ``num_extra`` of the rest are the extras; anyone else is dropped."""
     estimate = estimate or HumanEstimate()
     H = len(previous_slot_ids)
     pref = np.array(
@@ -121,27 +136,59 @@ def AssignSlots(
     )
     ids = estimate.ids[ok]
     pos, vel, pref = estimate.positions[ok], estimate.velocities[ok], pref[ok]
+    dist = np.zeros(len(ids))
+    if distances is not None:
+        dist = np.asarray(distances, dtype=float)[ok]
+        dist = np.where(np.isfinite(dist), dist, np.inf)
     slot_ids = np.array(previous_slot_ids, dtype=int)
     slot_ids[~np.isin(slot_ids, ids)] = -1
+    # Without a slot, nearest first (in estimate order without overflow).
+    waiting = [i for i in range(len(ids)) if ids[i] not in slot_ids]
+    overflow = len(ids) > H
+    if overflow:
+        waiting.sort(key=lambda i: dist[i])
+    for i in list(waiting):
+        free = np.nonzero(slot_ids < 0)[0]
+        if ids[i] in slot_ids:  # a repeated id: its first entry has the slot
+            waiting.remove(i)
+        elif free.size:
+            slot_ids[free[0]] = ids[i]
+            waiting.remove(i)
+    if overflow and waiting:
+        where = {int(hid): i for i, hid in enumerate(ids)}
+        for i in list(waiting):
+            held = [where[int(hid)] for hid in slot_ids]
+            farthest = max(range(H), key=lambda s: dist[held[s]])
+            if dist[i] + hysteresis < dist[held[farthest]]:
+                waiting.remove(i)
+                waiting.append(held[farthest])
+                slot_ids[farthest] = ids[i]
+        waiting.sort(key=lambda i: dist[i])
     p0 = ParkedPositions(H)
     v0 = np.zeros((H, 2))
     v_pref = np.zeros((H, 2))
-    dropped = 0
-    for i, hid in enumerate(ids):
-        slots = np.nonzero(slot_ids == hid)[0]
-        if not slots.size:
-            free = np.nonzero(slot_ids < 0)[0]
-            if not free.size:
-                dropped += 1
-                continue
-            slot_ids[free[0]] = hid
-            slots = free[:1]
-        p0[slots[0]] = pos[i]
-        v0[slots[0]] = vel[i]
-        v_pref[slots[0]] = pref[i]
-    active = slot_ids >= 0
+    for slot, hid in enumerate(slot_ids):
+        if hid >= 0:
+            i = int(np.nonzero(ids == hid)[0][0])
+            p0[slot], v0[slot], v_pref[slot] = pos[i], vel[i], pref[i]
+    E = max(int(num_extra), 0)
+    extra = waiting[:E]
+    extra_ids = np.full(E, -1)
+    extra_p0 = np.zeros((E, 2))
+    extra_v0 = np.zeros((E, 2))
+    extra_ids[: len(extra)] = ids[extra]
+    extra_p0[: len(extra)] = pos[extra]
+    extra_v0[: len(extra)] = vel[extra]
     return HumanSlots(
-        slot_ids=slot_ids, active=active, p0=p0, v0=v0, v_pref=v_pref, dropped=dropped
+        slot_ids=slot_ids,
+        active=slot_ids >= 0,
+        p0=p0,
+        v0=v0,
+        v_pref=v_pref,
+        dropped=len(waiting) - len(extra),
+        extra_ids=extra_ids,
+        extra_p0=extra_p0,
+        extra_v0=extra_v0,
     )
 
 
