@@ -664,6 +664,39 @@ def test_solver_failure_and_overrun_fall_back():
     assert all(np.all(np.isfinite(c.velocity)) for _, c in bench.commands)
 
 
+def test_more_people_than_slots_nearest_predicted_next_kept_out_of():
+    """Motion capture sees four people; the Stretch 3's program has one slot
+    and four extras (hardware.scenarios.yaml): the nearest is predicted,
+    the other three are extras, nobody is unseen, and the status says so.
+    With no extras the three are unseen."""
+    from sm2ith_drake.run.hardware import _People, _StatusLine
+
+    def run(text):
+        bench = _Bench(_Scenario(text=text))
+        ids = [3, 4, 5, 6]
+        positions = [[6.0, 2.0], [2.5, 1.5], [5.0, -2.0], [7.0, 0.0]]
+
+        def feed(t):
+            if round(t / 0.005) % 2 == 0:
+                bench.PublishState()
+            if round(t / 0.005) % 10 == 0:
+                bench.PublishDetections(ids, positions)
+
+        bench.RunUntil(1.0, feed=feed)
+        predictor, ctx = bench.Subsystem("human_predictor")
+        last = predictor.GetPredictorState(ctx).last_prediction
+        return bench, last, _People(bench.diagram, bench.root)
+
+    bench, last, people = run("{}")
+    assert last.slot_ids.tolist() == [4]  # the nearest (2.5, 1.5)
+    assert sorted(last.extra_ids[last.extra_ids >= 0].tolist()) == [3, 5, 6]
+    assert people == {"predicted": 1, "extra": 3, "unseen": 0}
+    line = _StatusLine(bench.diagram, bench.root, bench.timing)
+    assert "people 1 predicted + 3 extra, 0 unseen" in line
+    _, _, people = run("{prediction: {max_extra_humans: 0}}")
+    assert people == {"predicted": 1, "extra": 0, "unseen": 3}
+
+
 def test_sigint_sends_one_final_stop_command():
     from pydrake.lcm import DrakeLcm
     from pydrake.systems.analysis import Simulator

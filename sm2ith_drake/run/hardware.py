@@ -159,12 +159,31 @@ def _ControllerFigures(diagram, root) -> dict:
     return out
 
 
+def _People(diagram, root) -> dict:
+    """At the last prediction: the people in the program's slots, the
+    extras the barrier keeps out of, and those the controller does not see
+    (more than max_humans + max_extra_humans); {} without people."""
+    if not diagram.HasSubsystemNamed("human_predictor"):
+        return {}
+    predictor = diagram.GetSubsystemByName("human_predictor")
+    state = predictor.GetPredictorState(predictor.GetMyContextFromRoot(root))
+    last = state.last_prediction
+    if last is None:
+        return {"predicted": 0, "extra": 0, "unseen": 0}
+    return {
+        "predicted": int(np.sum(last.active)),
+        "extra": int(np.sum(np.asarray(last.extra_ids) >= 0)),
+        "unseen": int(last.dropped),
+    }
+
+
 def _Summary(diagram, root, timing: CommandTiming) -> dict:
     summary = {
         "time": float(root.get_time()),
         "timing": timing.Summary(),
         "controller": _ControllerFigures(diagram, root),
         "hardware": GetHardwareStatus(diagram, root),
+        "people": _People(diagram, root),
     }
     lat = summary["timing"]["latency_ms"]
     solve = summary["controller"]["solve_ms"]
@@ -188,6 +207,12 @@ def _StatusLine(diagram, root, timing: CommandTiming) -> str:
         f"latency {ms(t['latency_ms'])} ms (solve {ms(ctrl['solve_ms'])} ms)",
         f"gate: {hw['gate']['mode']}",
     ]
+    people = _People(diagram, root)
+    if people:
+        parts.append(
+            f"people {people['predicted']} predicted + {people['extra']} "
+            f"extra, {people['unseen']} unseen"
+        )
     for name in ("robot_state", "detections"):
         if name in hw:
             parts.append(
