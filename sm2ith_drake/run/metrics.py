@@ -104,6 +104,7 @@ def HumanMetrics(log, robot, human_radii) -> dict:
     inside = np.any(dist < INTIMATE_DISTANCE, axis=1)
     inside_base = np.any(base < INTIMATE_DISTANCE, axis=1)
     return {
+        "min_human_distance": float(dist.min()),
         "min_human_gap": float(gap.min()),
         "mean_human_distance": float(dist.mean()),
         "collision_samples": int(np.sum(np.any(gap < 0, axis=1))),
@@ -420,7 +421,9 @@ def CampaignRow(log, robot, scenario, metrics: dict, reference_xy=None) -> dict:
         )
         row["min_obstacle_clearance"] = clearance
         row["wall_collision"] = bool(clearance < 0.0)
-    if log.human_positions:
+    if "min_human_distance" in metrics:  # HumanMetrics measured it
+        row["min_human_distance"] = metrics["min_human_distance"]
+    elif log.human_positions:
         dist = HumanDistances(robot, log.states, log.human_positions)
         row["min_human_distance"] = float(dist.min())
     for key in _SUMMARY_COLUMNS:
