@@ -503,6 +503,86 @@ def test_extra_rows_keep_the_robot_from_a_person_without_a_slot(predictor):
     assert np.min(h0[1:] - a * h0[:-1]) < -1e-2, h0
 
 
+def test_command_filter_never_lets_the_robot_close_in_on_someone_within_reach():
+    """The command filter (safe variant): a command whose one-period motion
+    brings the robot nearer to a person inside the margin is replaced by the
+    closest one that does not, or, where the limits allow no such command,
+    by one that closes in no more than braking would; people outside reach
+    or behind are not the filter's business; in a controller step the
+    change is recorded and counted."""
+    import dataclasses
+
+    from sm2ith_drake.control.command_filter import CLOSING_TOLERANCE, FilterCommand
+    from sm2ith_drake.control.mpc_controller import BrakingAcceleration
+    from sm2ith_drake.control.robot_groups import ModelStep
+    from sm2ith_drake.humans.messages import HumanEstimate
+
+    scenario, robot, controller = _replay_controller()
+    reach = scenario.safety.human_radius + scenario.safety.human_margin
+    period = controller.period
+    q0 = np.array(robot.default_q, dtype=float)
+    m = robot.num_velocities
+    ahead = np.array([3.0, 0.0])
+    while _Gap0(robot, q0, ahead) - reach > -0.03:  # 3 cm inside the margin
+        ahead[0] -= 0.005
+    forward = np.zeros(m)
+    forward[0] = robot.nudot_upper[0]  # full acceleration toward them
+
+    def closing(nu0, u):
+        q1, _ = ModelStep(robot, q0, nu0, u, period)
+        return _Gap0(robot, q1, ahead) - _Gap0(robot, q0, ahead)
+
+    rest = np.zeros(m)
+    assert closing(rest, forward) < -1e-2
+    u, filtered = FilterCommand(robot, q0, rest, forward, [ahead], period=period,
+                                reach=reach)  # fmt: skip
+    assert filtered and closing(rest, u) >= -CLOSING_TOLERANCE
+    assert np.all(u >= robot.nudot_lower - 1e-9) and np.all(
+        u <= robot.nudot_upper + 1e-9
+    )
+    # Away from them, or them out of reach: unchanged.
+    backward = -forward
+    assert FilterCommand(robot, q0, rest, backward, [ahead], period=period,
+                         reach=reach)[1] is False  # fmt: skip
+    far = ahead + [1.0, 0.0]
+    assert FilterCommand(robot, q0, rest, forward, [far], period=period,
+                         reach=reach)[1] is False  # fmt: skip
+    # Driving at them at 0.5 m/s: no command avoids closing in; the filter's
+    # closes in no more than braking.
+    driving = np.zeros(m)
+    driving[0] = 0.5
+    brake = BrakingAcceleration(robot, driving, period)
+    u, filtered = FilterCommand(robot, q0, driving, forward, [ahead], period=period,
+                                reach=reach)  # fmt: skip
+    assert filtered and closing(driving, u) >= closing(driving, brake) - 1e-6
+    # In a controller step (safe variant, filter on).
+    safety = dataclasses.replace(scenario.safety, command_filter=True)
+    from sm2ith_drake.control.mpc_controller import MpcController
+
+    filtering = MpcController(
+        robot,
+        scenario.tasks,
+        scenario.controller,
+        prediction=scenario.prediction,
+        safety=safety,
+    )
+    targets = {t.name: np.asarray(t.target, dtype=float) for t in filtering.tasks}
+    for name in targets:  # the base's goal lies beyond the person
+        if name.startswith("base"):
+            targets[name][:2] = ahead + [3.0, 0.0]
+    person = HumanEstimate(ids=[1], positions=[ahead], velocities=[[0.0, 0.0]])
+    state = filtering.Step(
+        filtering.InitialState(),
+        time_now=0.0,
+        q0=q0,
+        nu0=driving,
+        targets=targets,
+        prediction=_Predict(filtering, person, q0, driving),
+    )
+    assert state.record.filtered and state.counters.filtered_commands == 1
+    assert closing(driving, state.command_u) >= closing(driving, brake) - 1e-6
+
+
 def _FirstStep(controller, estimate, q0, nu0, targets):
     """The controller's first step with the people of ``estimate``; it must
     solve."""
