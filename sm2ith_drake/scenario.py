@@ -300,10 +300,9 @@ class SafetyConfig:
     guard_gap: float = 0.0
     # Optional (false: off, the default), `safe` variant only: the command
     # filter (control/command_filter.py): the robot's own motion over the
-    # next control period keeps the DT-CBF against everyone standing where
-    # measured (h lowered by at most γ·h per period, not at all inside the
-    # margin), checked within the period; else the closest command that
-    # does is sent instead of the plan's.
+    # next control period never brings a body nearer to anyone measured
+    # inside the barrier's margin (human_radius + human_margin); the
+    # closest command that does not is sent instead of the plan's.
     command_filter: bool = False
     # Optional (0: off, the default): also hold the barrier over the first
     # static_guard_steps steps against every tracked person standing still

@@ -314,7 +314,6 @@ class MpcController:
                 humans.positions,
                 period=self.period,
                 reach=self.safety.human_radius + self.safety.human_margin,
-                gamma=self.safety.gamma,
             )
             new.counters.filtered_commands += int(record.filtered)
         record.success = ok
