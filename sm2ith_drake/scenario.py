@@ -298,12 +298,6 @@ class SafetyConfig:
     # instead of 10 cm. Not yet the default: measured on that cell only
     # (README, "Contact in the safe variant").
     guard_gap: float = 0.0
-    # Optional (false: off, the default), `safe` variant only: the command
-    # filter (control/command_filter.py): the robot's own motion over the
-    # next control period never brings a body nearer to anyone measured
-    # inside the barrier's margin (human_radius + human_margin); the
-    # closest command that does not is sent instead of the plan's.
-    command_filter: bool = False
     # Optional (0: off, the default): also hold the barrier over the first
     # static_guard_steps steps against every tracked person standing still
     # where measured, for SM²ITH and CVMM (React's barrier already is

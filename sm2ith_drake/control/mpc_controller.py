@@ -16,7 +16,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sm2ith_drake.control.cbf import ObstacleSegments
-from sm2ith_drake.control.command_filter import FilterCommand
 from sm2ith_drake.control.hierarchy import HierarchicalSolver, MpcSolution
 from sm2ith_drake.control.prediction.factory import MakePredictor
 from sm2ith_drake.control.prediction.orca_kkt import PredictionConsistency
@@ -45,8 +44,6 @@ class ControllerCounters:
     # Shifted-plan replays refused because they would close in on a person
     # faster than the DT-CBF allows (the robot brakes instead).
     unsafe_replays: int = 0
-    # Commands the command filter changed (SafetyConfig.command_filter).
-    filtered_commands: int = 0
 
 
 @dataclass
@@ -61,8 +58,6 @@ class StepRecord:
     success: bool = True
     mode: str = "none"  # "solved" | "shifted_plan" | "brake"
     status: str = ""
-    # The command filter changed this step's command.
-    filtered: bool = False
     # With ControllerConfig.check_predictions and the ORCA-KKT predictor:
     # ‖a_QP − a_predicted‖ of every active human and prediction step, from
     # re-solving each human's relaxed-ORCA QP at the planned states (m/s).
@@ -301,21 +296,6 @@ class MpcController:
                 new.plan = None
                 new.counters.braking_fallbacks += 1
                 record.mode = "brake"
-        if (
-            self.safety.command_filter
-            and self.safety.mode == "safe"
-            and humans is not None
-        ):
-            u, record.filtered = FilterCommand(
-                self.robot,
-                q0,
-                nu0,
-                u,
-                humans.positions,
-                period=self.period,
-                reach=self.safety.human_radius + self.safety.human_margin,
-            )
-            new.counters.filtered_commands += int(record.filtered)
         record.success = ok
         nu_now = np.nan_to_num(nu0)
         new.command_u = np.asarray(u, dtype=float)
