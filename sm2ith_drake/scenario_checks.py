@@ -238,6 +238,7 @@ def _ValidatePeople(scenario: Scenario) -> None:
         "slack_weight_velocity",
         "complementarity_relaxation",
         "preferred_velocity_time_constant",
+        "max_humans",
         "max_neighbors",
         "max_extra_humans",
         "neighbor_hysteresis",

@@ -107,7 +107,12 @@ class MpcProgram:
         if predictor is not None:
             predictor.AddVariables(L)
             self.extra_constraints += predictor.ConstraintGroups(self)
-        if (predictor is not None and predictor.num_slots) or len(segments):
+        people = (
+            predictor.num_slots + predictor.extra_active.size
+            if predictor is not None
+            else 0
+        )
+        if people or len(segments):
             safety = safety or SafetyConfig()
             positions = (
                 predictor.p

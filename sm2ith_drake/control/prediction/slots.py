@@ -154,7 +154,7 @@ def AssignSlots(
         elif free.size:
             slot_ids[free[0]] = ids[i]
             waiting.remove(i)
-    if overflow and waiting:
+    if overflow and waiting and H:
         where = {int(hid): i for i, hid in enumerate(ids)}
         for i in list(waiting):
             held = [where[int(hid)] for hid in slot_ids]
