@@ -54,6 +54,7 @@ def _Point(robot_name, with_people):
             max_humans=3,
             max_neighbors=1,
             neighbor_derivatives=True,
+            max_extra_humans=2,  # the two farther people: barrier rows
         )
     c = MpcController(
         robot,
@@ -73,14 +74,15 @@ def _Point(robot_name, with_people):
         prediction, _ = model.Predict(
             model.InitialState(),
             estimate=HumanEstimate(
-                ids=[0, 1, 2],
-                positions=[[3.0, 0.1], [3.0, 0.9], [3.0, 1.7]],
-                velocities=[[-1.0, 0.0], [-1.0, 0.0], [-1.0, 0.0]],
+                ids=[0, 1, 2, 3, 4],
+                positions=[[3.0, 0.1], [3.0, 0.9], [3.0, 1.7], [4.0, -0.3], [4.5, 1.2]],
+                velocities=[[-1.0, 0.0]] * 3 + [[-0.8, 0.2], [-0.5, -0.5]],
             ),
             q0=q0,
             nu0=nu0,
             warm_start_inputs=c.WarmStartInputs(c.InitialState()),
         )
+        assert sorted(prediction.extra_ids.tolist()) == [3, 4]
         c.predictor.SetPrediction(prediction)
     c.program.VariableBounds(q0, nu0)  # sets the DT-CBF's guard
     z = c.WarmStart(c.InitialState(), q0, nu0)

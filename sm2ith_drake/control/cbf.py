@@ -78,7 +78,10 @@ class DtCbfGroup(ConstraintGroup):
     horizon against up to E people who have no slot in the program (more
     people than ``max_humans``), each moving on at its measured velocity
     (``SetExtra``): they are not predicted interactively, but the robot
-    keeps out of their way as CVMM would.
+    keeps out of their way as CVMM would. An extra person has one row per
+    step, on the robot's nearest capsule at the linearization point (h of
+    the whole robot is the minimum over its capsules), not one per capsule:
+    a sixth of the rows.
     """
 
     name = "dt_cbf"
@@ -116,11 +119,11 @@ class DtCbfGroup(ConstraintGroup):
         E = self.num_extra = int(max(extra_humans, 0))
         # Guard row blocks, in row order: (steps, people, which guard).
         self._guards = [
-            (self.guard_steps, H, "moving"),
-            (self.static_guard_steps, H, "static"),
+            (self.guard_steps, H * C, "moving"),
+            (self.static_guard_steps, H * C, "static"),
             (N if E else 0, E, "extra"),
         ]
-        self.num_guard = sum(steps * count * C for steps, count, _ in self._guards)
+        self.num_guard = sum(steps * per_step for steps, per_step, _ in self._guards)
         self.num_rows = N * self.rows_per_step + self.num_guard
         self.guard_p0 = np.zeros((H, 2))
         self.guard_v0 = np.zeros((H, 2))
@@ -149,12 +152,12 @@ class DtCbfGroup(ConstraintGroup):
                     row_blocks.append(np.array([base + H * C + s * C + c]))
                     col_blocks.append(np.concatenate([layout.q[k], layout.q[k + 1]]))
         row = N * self.rows_per_step
-        for steps, count, _ in self._guards:
-            for r in range(steps * count * C):
-                k = r // (count * C)
+        for steps, per_step, _ in self._guards:
+            for r in range(steps * per_step):
+                k = r // per_step
                 row_blocks.append(np.array([row + r]))
                 col_blocks.append(np.concatenate([layout.q[k], layout.q[k + 1]]))
-            row += steps * count * C
+            row += steps * per_step
         # One slack per row under an exact penalty (MpcProgram): zero
         # whenever the hard constraints can be met; when they cannot (a person
         # walking into the robot faster than it can get away), the robot does
@@ -186,9 +189,15 @@ class DtCbfGroup(ConstraintGroup):
                 np.broadcast_to(qq, (S,) + qq.shape).ravel(),
             ]
         )
-        guard = np.broadcast_to(qq, (self.num_guard // max(C, 1),) + qq.shape)
+        guard = [
+            # An extra person's row is on whichever capsule is nearest.
+            np.broadcast_to(qq.any(axis=0), (steps * per_step, qq.shape[1])).ravel()
+            if which == "extra"
+            else np.broadcast_to(qq, (steps * per_step // C,) + qq.shape).ravel()
+            for steps, per_step, which in self._guards
+        ]
         return np.concatenate(
-            [np.tile(step, N), guard.ravel(), np.ones(self.num_rows, dtype=bool)]
+            [np.tile(step, N), *guard, np.ones(self.num_rows, dtype=bool)]
         )
 
     def SetGuard(self, positions, velocities, time_step, guarded=None, active=None):
@@ -224,14 +233,15 @@ class DtCbfGroup(ConstraintGroup):
                     "static": (self.static_p0, np.zeros_like(self.static_p0)),
                     "extra": (self.extra_p0, self.extra_v0),
                 }[which]
-                gi, vi = self._GuardBlock(point, steps, p0, v0)
+                gi, vi = self._GuardBlock(point, steps, p0, v0, which == "extra")
                 g.append(gi)
                 vals.append(vi)
         return np.concatenate(g), np.concatenate(vals)
 
-    def _GuardBlock(self, point, G, p0, v0):
+    def _GuardBlock(self, point, G, p0, v0, nearest=False):
         """h(q_{k+1}, p0 + (k+1)Δt v0) − (1 − γ) h(q_k, p0 + kΔt v0) for
-        k < G, and their q_k, q_{k+1} gradients."""
+        k < G, and their q_k, q_{k+1} gradients: per capsule, or with
+        ``nearest`` of the whole robot (the nearest capsule at each knot)."""
         kin = point.kin
         ends = kin.capsule_points[: G + 1, :, :, :2]  # knots 0 … G
         jac = kin.capsule_jacobians[: G + 1, :, :, :2, :]
@@ -243,9 +253,13 @@ class DtCbfGroup(ConstraintGroup):
         JA, JB = jac[:, None, :, 0], jac[:, None, :, 1]
         Jc = (1 - s)[..., None, None] * JA + s[..., None, None] * JB
         dq = np.einsum("khci,khcin->khcn", nrm, Jc)  # (G+1, H, C, n)
+        if nearest:
+            c = np.argmin(h, axis=2)[..., None]  # (G+1, H, 1)
+            h = np.take_along_axis(h, c, axis=2)
+            dq = np.take_along_axis(dq, c[..., None], axis=2)
         a = 1.0 - self.gamma
-        g = h[1:] - a * h[:-1]  # (G, H, C)
-        vals = np.concatenate([-a * dq[:-1], dq[1:]], axis=3)  # (G, H, C, 2n)
+        g = h[1:] - a * h[:-1]  # (G, H, C or 1)
+        vals = np.concatenate([-a * dq[:-1], dq[1:]], axis=3)  # (G, H, ·, 2n)
         return g.ravel(), vals.ravel()
 
     def Barriers(self, point):
