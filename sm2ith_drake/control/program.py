@@ -107,12 +107,9 @@ class MpcProgram:
         if predictor is not None:
             predictor.AddVariables(L)
             self.extra_constraints += predictor.ConstraintGroups(self)
-        people = (
-            predictor.num_slots + predictor.extra_active.size
-            if predictor is not None
-            else 0
-        )
-        if people or len(segments):
+        slots = predictor.num_slots if predictor is not None else 0
+        extras = predictor.extra_active.size if predictor is not None else 0
+        if slots or extras or len(segments):
             safety = safety or SafetyConfig()
             positions = (
                 predictor.p
@@ -151,9 +148,7 @@ class MpcProgram:
                 ),
                 # People beyond the slots, at constant velocity (held for
                 # React), in both safety variants.
-                extra_humans=(
-                    predictor.extra_active.size if predictor is not None else 0
-                ),
+                extra_humans=extras,
             )
             nr = self.cbf.num_rows
             self.extra_constraints.append((self.cbf, np.zeros(nr), np.full(nr, np.inf)))

@@ -52,7 +52,7 @@ class Predictor:
         self.guarded = np.zeros(H, dtype=bool)
         self.positions = HeldPrediction(self.p0, horizon)
         # The people without a slot that the barrier keeps out of.
-        E = int(getattr(config, "max_extra_humans", 0))
+        E = int(config.max_extra_humans)
         self.extra_active = np.zeros(E, dtype=bool)
         self.extra_p0 = np.zeros((E, 2))
         self.extra_v0 = np.zeros((E, 2))
@@ -76,11 +76,12 @@ class Predictor:
         self.guarded = guarded if guarded.shape == self.active.shape else self.active
         E = self.extra_active.size
         ids = np.asarray(prediction.extra_ids, dtype=int).reshape(-1)
-        self.extra_active = np.zeros(E, dtype=bool)
+        if ids.size != E:  # a prediction without (these) extras: none
+            ids = np.full(E, -1)
+        self.extra_active = ids >= 0
         self.extra_p0 = np.zeros((E, 2))
         self.extra_v0 = np.zeros((E, 2))
-        if ids.size == E:
-            self.extra_active = ids >= 0
+        if self.extra_active.any():
             self.extra_p0 = np.asarray(prediction.extra_positions, dtype=float)
             # Moving on at their measured velocity; React holds everyone.
             if self.name != "react":

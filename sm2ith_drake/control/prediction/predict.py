@@ -116,13 +116,17 @@ class HumanPredictorModel:
         preferred = FilterPreferredVelocities(
             state.preferred_velocities, estimate, intents, self._alpha
         )
-        # Who is nearest matters only with more people than slots.
+        # Who is nearest matters with more people than slots, and to the
+        # guard gap; measured once for both.
         crowded = estimate is not None and len(estimate.ids) > self.num_slots
+        distances = (
+            self._Distances(estimate, q0) if crowded or self.guard_gap > 0 else None
+        )
         slots = AssignSlots(
             state.slot_ids,
             estimate,
             preferred,
-            distances=self._Distances(estimate, q0) if crowded else None,
+            distances=distances if crowded else None,
             hysteresis=cfg.neighbor_hysteresis,
             num_extra=cfg.max_extra_humans,
         )
@@ -156,7 +160,7 @@ class HumanPredictorModel:
                 PredictedNow(last_solution, self.control_period, self.dt),
                 deviation=self.guard_deviation,
                 hold_steps=self.guard_hold_steps,
-                close=self._Close(estimate, q0),
+                close=self._Close(estimate, distances),
             )
         guarded = np.array([int(i) in guards for i in slots.slot_ids], dtype=bool)
         prediction = HumanPrediction(
@@ -199,13 +203,11 @@ class HumanPredictorModel:
             )[0]
         return distances
 
-    def _Close(self, estimate, q0) -> list:
+    def _Close(self, estimate, distances) -> list:
         """The ids of the people measured within guard_gap of the robot's
-        nearest body at q0 (none without a finite q0 or with guard_gap 0)."""
-        if self.guard_gap <= 0:
-            return []
-        distances = self._Distances(estimate, q0)
-        if distances is None:
+        nearest body (``distances``: _Distances; none with guard_gap 0 or
+        without distances)."""
+        if self.guard_gap <= 0 or distances is None:
             return []
         gaps = distances - self.human_radius
         return [

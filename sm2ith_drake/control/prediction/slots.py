@@ -154,8 +154,10 @@ def AssignSlots(
         elif free.size:
             slot_ids[free[0]] = ids[i]
             waiting.remove(i)
+    where = {}  # id → its first entry
+    for i, hid in enumerate(ids):
+        where.setdefault(int(hid), i)
     if overflow and waiting and H:
-        where = {int(hid): i for i, hid in enumerate(ids)}
         for i in list(waiting):
             held = [where[int(hid)] for hid in slot_ids]
             farthest = max(range(H), key=lambda s: dist[held[s]])
@@ -169,7 +171,7 @@ def AssignSlots(
     v_pref = np.zeros((H, 2))
     for slot, hid in enumerate(slot_ids):
         if hid >= 0:
-            i = int(np.nonzero(ids == hid)[0][0])
+            i = where[int(hid)]
             p0[slot], v0[slot], v_pref[slot] = pos[i], vel[i], pref[i]
     E = max(int(num_extra), 0)
     extra = waiting[:E]
