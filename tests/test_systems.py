@@ -649,6 +649,44 @@ def test_human_visualizer_draws_people_and_predictions(meshcat):
     assert t["/hv/predictor_output/1/2"][2] < -1.0
 
 
+def test_human_visualizer_draws_the_extras_at_constant_velocity(meshcat):
+    system = HumanVisualizer(
+        meshcat,
+        [HumanConfig()] * 3,
+        [],
+        horizon=2,
+        max_humans=1,
+        period=0.1,
+        prefix="hx",
+        max_extra_humans=2,
+        time_step=0.5,
+    )
+    context = system.CreateDefaultContext()
+    system.GetInputPort("plan").FixValue(context, MpcPlan())
+
+    def Show(model):
+        predicted = HumanPrediction(
+            model=model,
+            slot_ids=np.array([0]),
+            active=np.array([True]),
+            positions=np.zeros((3, 1, 2)),
+            extra_ids=np.array([2, -1]),
+            extra_positions=np.array([[1.0, 2.0], [0.0, 0.0]]),
+            extra_velocities=np.array([[0.4, -0.2], [0.0, 0.0]]),
+        )
+        system.GetInputPort("human_prediction").FixValue(context, predicted)
+        system.ForcedPublish(context)
+        return meshcat.transforms
+
+    t = Show("orca_kkt")
+    # Where the DT-CBF assumes person 2: p0 + k·Δt·v.
+    np.testing.assert_allclose(t["/hx/extra_humans/0/0"], [1.0, 2.0, 0.04])
+    np.testing.assert_allclose(t["/hx/extra_humans/0/2"], [1.4, 1.8, 0.04])
+    assert t["/hx/extra_humans/1/1"][2] < -1.0  # no second extra
+    # React holds everyone where measured.
+    np.testing.assert_allclose(Show("react")["/hx/extra_humans/0/2"], [1.0, 2.0, 0.04])
+
+
 # ---------------------------------------------------------------- lcm/
 
 

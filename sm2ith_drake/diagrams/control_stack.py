@@ -15,6 +15,22 @@ from sm2ith_drake.systems.planner import TaskPlanner
 from sm2ith_drake.systems.predictor import HumanPredictor
 
 
+def AddTaskPlanner(builder, scenario: Scenario, robot, tasks) -> TaskPlanner:
+    """Adds the TaskPlanner (named ``planner``) that follows ``scenario``'s
+    task sequence with ``tasks`` on ``robot``'s state; its ``robot_state``
+    input is left for the caller to connect. The control stack's planner,
+    and the driver's (which tells its simulated people the robot's phase)."""
+    return builder.AddNamedSystem(
+        "planner",
+        TaskPlanner(
+            tasks,
+            num_states=robot.num_positions + robot.num_velocities,
+            robot=robot,
+            sequence=scenario.sequence,
+        ),
+    )
+
+
 @dataclasses.dataclass
 class ControlStack:
     """What AddControlStack added, and the ports the robot side must connect.
@@ -89,13 +105,9 @@ def AddControlStack(
             motion capture whatever the scenario lists).
         max_log_samples: bound on the RunLogger's samples (0: unbounded).
     """
-    n, m = robot.num_positions, robot.num_velocities
     period = ControlPeriod(scenario.controller)
     has_humans = bool(scenario.humans) if with_people is None else with_people
-    planner = builder.AddNamedSystem(
-        "planner",
-        TaskPlanner(tasks, num_states=n + m, robot=robot, sequence=scenario.sequence),
-    )
+    planner = AddTaskPlanner(builder, scenario, robot, tasks)
     controller = builder.AddNamedSystem(
         "controller",
         HierarchicalMpc(

@@ -33,6 +33,7 @@ from pydrake.systems.lcm import (
 
 from sm2ith_drake.control.cbf import ObstacleSegments
 from sm2ith_drake.control.tasks import MakeTask
+from sm2ith_drake.diagrams.control_stack import AddTaskPlanner
 from sm2ith_drake.diagrams.hardware import AddLcmPublisher
 from sm2ith_drake.diagrams.people import AddCrowd, AddMocap
 from sm2ith_drake.lcm.codecs import RawLcmMessage
@@ -47,7 +48,6 @@ from sm2ith_drake.lcm.sm2ith_lcmtypes import (
 from sm2ith_drake.lcm.timing import CommandMonitor
 from sm2ith_drake.scenario import ControlPeriod, Scenario
 from sm2ith_drake.scenario_loader import MakeRobot
-from sm2ith_drake.systems.planner import TaskPlanner
 from sm2ith_drake.systems.robot import KinematicRobot
 
 
@@ -152,12 +152,7 @@ def MakeDriverDiagram(*, scenario: Scenario, lcm, robot=None):
             # The controller's planner is on the other side of LCM; this one
             # follows the same sequence on the robot's true state.
             tasks = [MakeTask(t, n) for t in scenario.tasks]
-            planner = builder.AddNamedSystem(
-                "planner",
-                TaskPlanner(
-                    tasks, num_states=n + m, robot=robot, sequence=scenario.sequence
-                ),
-            )
+            planner = AddTaskPlanner(builder, scenario, robot, tasks)
             builder.Connect(
                 sim_robot.GetOutputPort("state"), planner.GetInputPort("robot_state")
             )

@@ -150,6 +150,10 @@ def MakeSimulation(
                     horizon=scenario.controller.horizon,
                     max_humans=scenario.prediction.max_humans if has_humans else 0,
                     period=scenario.visualization.publish_period,
+                    max_extra_humans=(
+                        scenario.prediction.max_extra_humans if has_humans else 0
+                    ),
+                    time_step=scenario.controller.time_step,
                 ),
             )
             builder.Connect(controller.GetOutputPort("plan"), hv.GetInputPort("plan"))

@@ -101,13 +101,17 @@ HUMAN = Rgba(0.85, 0.45, 0.35, 0.9)
 OBSTACLE = Rgba(0.55, 0.5, 0.45, 1.0)
 HUMAN_HEIGHT = 1.7
 GREY = Rgba(0.45, 0.45, 0.45, 0.8)
+AMBER = Rgba(0.95, 0.65, 0.1, 0.9)
 
 
 class HumanVisualizer(LeafSystem):
     """Draws the humans (cylinders), the MPC's refined predictions of their
     paths (green, from the plan), the HumanPredictor's prediction before the
     MPC refined it (small grey dots) and the static obstacles, as in the
-    paper's figures.
+    paper's figures. With ``max_extra_humans``, the people beyond the slots
+    whom the DT-CBF keeps out of (PredictionConfig.max_extra_humans) get
+    amber dots: where the controller assumes them over the horizon (at
+    their measured velocity, steps of ``time_step``; React holds them).
 
     .. pydrake_system::
 
@@ -128,6 +132,8 @@ class HumanVisualizer(LeafSystem):
         max_humans: int,
         period: float,
         prefix: str = "sm2ith",
+        max_extra_humans: int = 0,
+        time_step: float = 0.0,
     ):
         super().__init__()
 
@@ -135,6 +141,8 @@ class HumanVisualizer(LeafSystem):
         self._prefix = prefix
         self._N = horizon
         self._H = max_humans
+        self._E = max_extra_humans
+        self._dt = time_step
         self._truth = self.DeclareAbstractInputPort(
             "human_truth", AbstractValue.Make(HumanEstimate())
         )
@@ -152,6 +160,9 @@ class HumanVisualizer(LeafSystem):
             for k in range(horizon + 1):
                 meshcat.SetObject(self._PredictionPath(slot, k), Sphere(0.06), GREEN)
                 meshcat.SetObject(self._PredictorPath(slot, k), Sphere(0.03), GREY)
+        for slot in range(max_extra_humans):
+            for k in range(horizon + 1):
+                meshcat.SetObject(self._ExtraPath(slot, k), Sphere(0.04), AMBER)
         for i, o in enumerate(obstacles):
             v = np.asarray(o.vertices, dtype=float)
             edges = (
@@ -183,16 +194,32 @@ class HumanVisualizer(LeafSystem):
     def _PredictorPath(self, slot, k):
         return f"/{self._prefix}/predictor_output/{slot}/{k}"
 
-    def _DrawPaths(self, positions, active, path, height, t):
+    def _ExtraPath(self, slot, k):
+        return f"/{self._prefix}/extra_humans/{slot}/{k}"
+
+    def _DrawPaths(self, positions, active, path, height, t, slots=None):
         """Per slot and step, a dot at the predicted position (hidden below
         the floor for empty slots)."""
-        for slot in range(min(self._H, positions.shape[1])):
+        slots = self._H if slots is None else slots
+        for slot in range(min(slots, positions.shape[1])):
             for k in range(min(self._N + 1, positions.shape[0])):
                 p = positions[k, slot]
                 z = height if active[slot] else -10.0
                 self._meshcat.SetTransform(
                     path(slot, k), RigidTransform([p[0], p[1], z]), t
                 )
+
+    def _DrawExtras(self, prediction, t):
+        ids = np.asarray(prediction.extra_ids, dtype=int).reshape(-1)
+        if not self._E or not ids.size:
+            return
+        p0 = np.asarray(prediction.extra_positions, dtype=float).reshape(-1, 2)
+        v0 = np.asarray(prediction.extra_velocities, dtype=float).reshape(-1, 2)
+        if prediction.model == "react":
+            v0 = np.zeros_like(v0)
+        times = self._dt * np.arange(self._N + 1)
+        positions = p0[None] + times[:, None, None] * v0[None]
+        self._DrawPaths(positions, ids >= 0, self._ExtraPath, 0.04, t, self._E)
 
     def _Draw(self, context):
         t = context.get_time()
@@ -216,6 +243,7 @@ class HumanVisualizer(LeafSystem):
                     0.03,
                     t,
                 )
+            self._DrawExtras(prediction, t)
         plan = self._plan.Eval(context).solution
         if plan is None or plan.human_predictions is None:
             return
