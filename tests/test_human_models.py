@@ -7,6 +7,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
 from sm2ith_drake.humans.crowd import InitialCrowdState, StepCrowd
+from sm2ith_drake.humans.instructed import PATH_LOOKAHEAD, PathVelocity
 from sm2ith_drake.humans.messages import HumanDetections
 from sm2ith_drake.humans.social_force import social_force_step
 from sm2ith_drake.humans.tracking import HumanTracks
@@ -357,6 +358,54 @@ def test_instructed_person_never_walks_into_an_oncoming_robot():
     assert np.min(gaps) > 0.05
     assert np.min(trace[:, 1]) < -0.5  # went around, on its right
     np.testing.assert_allclose(trace[-1], [8, 0], atol=0.05)
+
+
+def test_instructed_person_off_its_path_walks_back_onto_it_and_not_through_a_wall():
+    """A person who stepped aside beside a door (the wall y = 0 with a door
+    |x| < 0.5, the person pressed against the wall at (0.7, −0.3)) and whose
+    path runs through the door: it slides along the wall, rounds the jamb
+    and regains its path, never inside a wall. Heading straight for the
+    waypoint from there would cut through the wall beside the door."""
+    walls = np.array([[[-2.0, 0.0], [-0.5, 0.0]], [[0.5, 0.0], [2.0, 0.0]]])
+    human = HumanConfig(
+        behavior="instructed", start=[0.1, -4.0], waypoints=[[-0.1, 4.0]], speed=1.2
+    )
+    state = InitialCrowdState([human])
+    state.positions[0] = [0.7, -0.3]
+    trace = [state.positions[0].copy()]
+    for i in range(200):
+        state = StepCrowd(
+            [human],
+            state,
+            time=0.05 * i,
+            dt=0.05,
+            robot_position=[20.0, 20.0],
+            robot_velocity=[0.0, 0.0],
+            robot_radius=0.5,
+            obstacle_segments=walls,
+            tau=2.0,
+            tau_obs=0.5,
+        )
+        trace.append(state.positions[0].copy())
+    trace = np.array(trace)
+    clearance = np.min([[_Segment(p, a, b) for a, b in walls] for p in trace], axis=1)
+    assert np.min(clearance) > human.radius - 0.02
+    np.testing.assert_allclose(trace[-1], [-0.1, 4.0], atol=0.05)
+    # Back on its path (x ≈ 0.1 − 0.025 (y + 4)) well before the goal.
+    on_path = np.abs(trace[:, 0] - (0.1 - 0.025 * (trace[:, 1] + 4.0))) < 0.25
+    assert np.any(on_path & (trace[:, 1] > 0.3) & (trace[:, 1] < 2.0))
+
+
+def test_instructed_path_velocity_is_the_waypoints_on_the_path():
+    v = np.array([0.6, 0.8])
+    # On the leg (and within the tolerance of it): straight to the waypoint.
+    assert PathVelocity(np.array([3.0, 4.0]), v, [0, 0], [6, 8]) is v
+    assert PathVelocity(np.array([3.1, 3.9]), v, [0, 0], [6, 8]) is v
+    # Off it: toward PATH_LOOKAHEAD ahead of its foot on the leg, same speed.
+    off = PathVelocity(np.array([3.0 + 0.8 * 2, 4.0 - 0.6 * 2]), v, [0, 0], [6, 8])
+    aim = np.array([3.0, 4.0]) + PATH_LOOKAHEAD * v
+    expected = aim - [4.6, 2.8]
+    np.testing.assert_allclose(off, expected / np.linalg.norm(expected))
 
 
 def test_a_person_starts_when_the_robot_enters_its_phase():

@@ -30,9 +30,10 @@ The crowd moves with time step Δt_c. Each human has a behaviour:
   to walk its reaction distance, the person taking the whole avoidance, the
   walls kept); when the robot is in its way
   it steps to its right (``KEEP_RIGHT_ANGLE``), so a head-on meeting does not
-  end in a stand-off. Once the robot is out of reach again it heads straight
-  back to its next waypoint. It never uses the prediction's model: one of
-  the people who do not behave as SM²ITH assumes.
+  end in a stand-off. Off its path it walks back onto it (not straight to
+  the waypoint, which can cut a door's jamb), and it keeps off the walls
+  (humans/instructed.py). It never uses the prediction's model: one of the
+  people who do not behave as SM²ITH assumes.
 
 Any person with a ``start_phase`` stands at its start until the robot's task
 sequence enters that phase; its ``start_time`` then counts from that moment
@@ -47,23 +48,22 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sm2ith_drake.geometry import point_segment_distance_2d
 from sm2ith_drake.humans.half_planes import obstacle_half_planes, orca_agent_half_planes
+from sm2ith_drake.humans.instructed import InstructedVelocity
 from sm2ith_drake.humans.orca_velocity import orca_velocity
 from sm2ith_drake.humans.relaxed_orca import relaxed_orca_action
+from sm2ith_drake.humans.robot_view import (
+    NearestBodyOnFloor,
+    NearestRobotPoint,
+    RobotAgents,
+    RobotGap,
+)
 from sm2ith_drake.humans.social_force import social_force_step
 
 # A waypoint counts as reached within this distance (m).
 WAYPOINT_TOLERANCE = 0.2
 # An adversarial person stops this far from the robot's bodies (m).
 ADVERSARY_STOP_GAP = 0.1
-# An instructed person, when the robot is in its way, aims this much to its
-# right (rad), so that a head-on meeting is resolved to one side,
-# deterministically ...
-KEEP_RIGHT_ANGLE = np.radians(30.0)
-# ... and passes the robot with this much room (m): it avoids the robot's
-# bodies inflated by it, not by a hair's breadth.
-INSTRUCTED_CLEARANCE = 0.1
 
 
 @dataclass
@@ -169,104 +169,6 @@ def PreferredVelocities(
     return v_pref, goals
 
 
-def _NearestBody(position, robot_bodies):
-    """The robot capsule nearest to ``position`` on the floor: (the closest
-    point on its axis, its radius, its surface distance)."""
-    segments, radii = robot_bodies
-    a, b = segments[:, 0], segments[:, 1]
-    d, s, _ = point_segment_distance_2d(a, b, position)
-    closest = a + s[:, None] * (b - a)
-    d = d - radii
-    i = int(np.argmin(d))
-    return closest[i], float(radii[i]), float(d[i])
-
-
-def _RobotAgents(position, robot_position, robot_radius, robot_bodies):
-    """The robot as a person at ``position`` sees it, as ORCA agents moving
-    with the base: its base and, as a second agent, the nearest of its
-    bodies (an arm sticking out is avoided too). Positions (K, 2), radii
-    (K,)."""
-    robot_p, robot_r = [robot_position], [robot_radius]
-    if robot_bodies is not None:
-        point, r, _ = _NearestBody(position, robot_bodies)
-        if np.linalg.norm(point - robot_position) > 1e-6:
-            robot_p.append(point)
-            robot_r.append(r)
-    return np.array(robot_p, dtype=float), np.array(robot_r, dtype=float)
-
-
-def _NearestRobotPoint(position, robot_position, robot_radius, robot_bodies):
-    """The robot's point nearest to ``position`` and its radius: the base
-    disc's centre, or the nearest body's axis point if that is nearer."""
-    if robot_bodies is not None:
-        point, r, gap = _NearestBody(position, robot_bodies)
-        if gap < np.linalg.norm(position - robot_position) - robot_radius:
-            return point, r
-    return robot_position, robot_radius
-
-
-def _InstructedVelocity(
-    h,
-    position,
-    velocity,
-    v_pref,
-    *,
-    robot_position,
-    robot_velocity,
-    robot_radius,
-    robot_bodies,
-    obstacle_segments,
-    tau_obs,
-    dt,
-):
-    """An instructed person's velocity: its path's (``v_pref``) while the
-    robot is farther than its reaction distance; else the velocity closest
-    to it that keeps clear of the robot alone (its bodies inflated by
-    INSTRUCTED_CLEARANCE), the person taking all of the avoidance (share 1:
-    it does not count on the robot), for as long as it takes the person to
-    walk its reaction distance (1 m at 1 m/s: 1 s, half the crowd's τ)."""
-    gap = _Gap(position, h.radius, robot_position, robot_radius, robot_bodies)
-    if gap >= h.reaction_distance:
-        return v_pref
-    robot_p, robot_r = _RobotAgents(
-        position, robot_position, robot_radius, robot_bodies
-    )
-    speed = max(h.speed, 1e-3)
-
-    def Avoid(preferred):
-        return orca_velocity(
-            position,
-            velocity,
-            h.radius,
-            robot_p,
-            np.tile(robot_velocity, (len(robot_p), 1)),
-            robot_r + INSTRUCTED_CLEARANCE,
-            preferred_velocity=preferred,
-            max_speed=speed,
-            tau=h.reaction_distance / speed,
-            tau_obs=tau_obs,
-            time_step=dt,
-            shares=1.0,
-            obstacles=[tuple(s) for s in obstacle_segments],
-        )
-
-    new_v = Avoid(v_pref)
-    if np.allclose(new_v, v_pref, rtol=0.0, atol=1e-9):
-        return new_v  # the robot is near but not in the way
-    # In the way: the person steps aside to its right. Head-on, ORCA alone
-    # would have it stop dead in front of the robot (the symmetric case).
-    c, s = np.cos(KEEP_RIGHT_ANGLE), np.sin(KEEP_RIGHT_ANGLE)
-    return Avoid(np.array([[c, s], [-s, c]]) @ v_pref)
-
-
-def _Gap(position, radius, robot_position, robot_radius, robot_bodies):
-    """Clearance between a person and the nearest robot body (m)."""
-    gap = np.linalg.norm(robot_position - position) - robot_radius - radius
-    if robot_bodies is not None:
-        gap = min(gap, _NearestBody(position, robot_bodies)[2] - radius)
-    return gap
-
-
 def StepCrowd(
     humans,
     state: CrowdState,
@@ -315,11 +217,14 @@ def StepCrowd(
     for j, h in enumerate(humans):
         waiting = time < start_times[j]
         if h.behavior == "instructed":
-            new_v[j] = _InstructedVelocity(
+            w = state.waypoint[j]
+            new_v[j] = InstructedVelocity(
                 h,
                 p[j],
                 v[j],
                 v_pref[j],
+                leg_start=h.waypoints[(w - 1) % len(h.waypoints)] if w else h.start,
+                goal=goals[j],
                 robot_position=robot_position,
                 robot_velocity=robot_velocity,
                 robot_radius=robot_radius,
@@ -332,7 +237,7 @@ def StepCrowd(
             new_v[j] = v_pref[j]
         elif h.behavior == "adversarial":
             d = robot_position - p[j]
-            gap = _Gap(p[j], h.radius, robot_position, robot_radius, robot_bodies)
+            gap = RobotGap(p[j], h.radius, robot_position, robot_radius, robot_bodies)
             if waiting or gap <= ADVERSARY_STOP_GAP:
                 new_v[j] = 0.0
             else:
@@ -340,7 +245,7 @@ def StepCrowd(
                 new_v[j] = d / np.linalg.norm(d) * step
         elif h.behavior == "orca":
             others = [i for i in range(H) if i != j]
-            robot_p, robot_r = _RobotAgents(
+            robot_p, robot_r = RobotAgents(
                 p[j], robot_position, robot_radius, robot_bodies
             )
             new_v[j] = orca_velocity(
@@ -380,7 +285,7 @@ def StepCrowd(
         # all the others and the robot's point nearest to them); only their
         # own rows are kept.
         robot = (robot_position, robot_radius, robot_bodies)
-        nearest = [_NearestRobotPoint(p[j], *robot) for j in range(H)]
+        nearest = [NearestRobotPoint(p[j], *robot) for j in range(H)]
         _, sv = social_force_step(
             p,
             v,
@@ -426,7 +331,7 @@ def _ModelVelocity(
     if robot_bodies is None:
         body_p, body_r = robot_position, robot_radius
     else:
-        body_p, body_r, _ = _NearestBody(p[j], robot_bodies)
+        body_p, body_r, _ = NearestBodyOnFloor(p[j], robot_bodies)
     other_p = np.vstack([p[others], robot_position, body_p])
     other_v = np.vstack([v[others], robot_velocity, robot_velocity])
     radius = np.concatenate([radii[others], [robot_radius, body_r]]) + radii[j]

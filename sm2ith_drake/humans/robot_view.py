@@ -49,8 +49,8 @@ class NearestBody:
 
 
 def NearestBodies(robot: RobotView, positions, derivatives: bool = True) -> NearestBody:
-    """The nearest robot body of every person (as humans/crowd.py's
-    _NearestBody) with the derivatives of its closest point: for
+    """The nearest robot body of every person (as
+    NearestBodyOnFloor) with the derivatives of its closest point: for
     c = A + s(B − A), s = clip((P − A)·d / d·d) with d = B − A, the clipped
     ends move with A or B, and inside ∂s follows from the quotient rule.
     Without ``derivatives`` d_dq and d_dp are None (a forward simulation
@@ -114,3 +114,50 @@ def HumanDistances(robot, states, human_positions) -> np.ndarray:
         ends[:, None, :, 0], ends[:, None, :, 1], P[:, :, None, :]
     )  # (T, H, C)
     return np.min(d - robot.capsule_radii[None, None, :], axis=2)
+
+
+# The robot as one simulated person sees it (humans/crowd.py, humans/instructed.py).
+
+
+def NearestBodyOnFloor(position, robot_bodies):
+    """The robot capsule nearest to ``position`` on the floor: (the closest
+    point on its axis, its radius, its surface distance)."""
+    segments, radii = robot_bodies
+    a, b = segments[:, 0], segments[:, 1]
+    d, s, _ = point_segment_distance_2d(a, b, position)
+    closest = a + s[:, None] * (b - a)
+    d = d - radii
+    i = int(np.argmin(d))
+    return closest[i], float(radii[i]), float(d[i])
+
+
+def RobotAgents(position, robot_position, robot_radius, robot_bodies):
+    """The robot as a person at ``position`` sees it, as ORCA agents moving
+    with the base: its base and, as a second agent, the nearest of its
+    bodies (an arm sticking out is avoided too). Positions (K, 2), radii
+    (K,)."""
+    robot_p, robot_r = [robot_position], [robot_radius]
+    if robot_bodies is not None:
+        point, r, _ = NearestBodyOnFloor(position, robot_bodies)
+        if np.linalg.norm(point - robot_position) > 1e-6:
+            robot_p.append(point)
+            robot_r.append(r)
+    return np.array(robot_p, dtype=float), np.array(robot_r, dtype=float)
+
+
+def NearestRobotPoint(position, robot_position, robot_radius, robot_bodies):
+    """The robot's point nearest to ``position`` and its radius: the base
+    disc's centre, or the nearest body's axis point if that is nearer."""
+    if robot_bodies is not None:
+        point, r, gap = NearestBodyOnFloor(position, robot_bodies)
+        if gap < np.linalg.norm(position - robot_position) - robot_radius:
+            return point, r
+    return robot_position, robot_radius
+
+
+def RobotGap(position, radius, robot_position, robot_radius, robot_bodies):
+    """Clearance between a person and the nearest robot body (m)."""
+    gap = np.linalg.norm(robot_position - position) - robot_radius - radius
+    if robot_bodies is not None:
+        gap = min(gap, NearestBodyOnFloor(position, robot_bodies)[2] - radius)
+    return gap

@@ -1,0 +1,125 @@
+"""The ``instructed`` person (humans/crowd.py): told to walk a fixed path, it
+ignores the robot until the robot comes within its reaction distance, then
+avoids it late, taking the whole avoidance itself.
+
+Its path is the polyline start → waypoints. While on it, the person walks
+straight to its current waypoint. Off it (after stepping aside for the
+robot) it walks back onto it, aiming ``PATH_LOOKAHEAD`` ahead along the
+leg, as someone told to follow a route does; heading straight for the
+waypoint instead can cut through a wall (a door's jamb) or pin the person in
+the corner beside a door, where its velocity toward the waypoint points
+into the wall. Walls are always kept (RVO2's obstacle lines).
+"""
+
+import numpy as np
+
+from sm2ith_drake.humans.orca_velocity import orca_velocity
+from sm2ith_drake.humans.robot_view import RobotAgents, RobotGap
+
+# When the robot is in its way, the person aims this much to its right
+# (rad), so that a head-on meeting is resolved to one side,
+# deterministically ...
+KEEP_RIGHT_ANGLE = np.radians(30.0)
+# ... and passes the robot with this much room (m): it avoids the robot's
+# bodies inflated by it, not by a hair's breadth.
+INSTRUCTED_CLEARANCE = 0.1
+# Farther than this from its path's current leg (m), the person walks back
+# onto it, aiming PATH_LOOKAHEAD ahead along the leg (m). Above crowd.py's
+# WAYPOINT_TOLERANCE (0.2 m), so a person who turns at a waypoint it has come
+# within that distance of is on its new leg, as a scripted person.
+PATH_TOLERANCE = 0.25
+PATH_LOOKAHEAD = 1.0
+
+
+def PathVelocity(position, v_pref, leg_start, goal):
+    """The velocity of a person following the leg ``leg_start`` → ``goal``
+    at ``v_pref``'s speed: ``v_pref`` itself (straight to the waypoint)
+    within PATH_TOLERANCE of the leg, else toward the point PATH_LOOKAHEAD
+    beyond its projection on the leg (clamped to the goal)."""
+    a = np.asarray(leg_start, dtype=float)
+    g = np.asarray(goal, dtype=float)
+    d = g - a
+    length = float(np.linalg.norm(d))
+    speed = float(np.linalg.norm(v_pref))
+    if length < 1e-9 or speed < 1e-12:
+        return v_pref
+    along = float(np.clip(np.dot(position - a, d) / length, 0.0, length))
+    foot = a + along / length * d
+    if np.linalg.norm(position - foot) <= PATH_TOLERANCE:
+        return v_pref
+    aim = a + min(along + PATH_LOOKAHEAD, length) / length * d
+    to_aim = aim - position
+    dist = float(np.linalg.norm(to_aim))
+    return v_pref if dist < 1e-9 else to_aim / dist * speed
+
+
+def InstructedVelocity(
+    h,
+    position,
+    velocity,
+    v_pref,
+    *,
+    leg_start,
+    goal,
+    robot_position,
+    robot_velocity,
+    robot_radius,
+    robot_bodies,
+    obstacle_segments,
+    tau_obs,
+    dt,
+):
+    """An instructed person's velocity. Its path's velocity (PathVelocity;
+    ``v_pref`` on the path), kept off the walls, while the robot is farther
+    than its reaction distance; else the velocity closest to it that keeps
+    clear of the robot alone (its bodies inflated by INSTRUCTED_CLEARANCE)
+    and the walls, the person taking all of the avoidance (share 1: it does
+    not count on the robot), for as long as it takes the person to walk its
+    reaction distance (1 m at 1 m/s: 1 s, half the crowd's τ)."""
+    walls = [tuple(s) for s in obstacle_segments]
+    speed = max(h.speed, 1e-3)
+    path_v = PathVelocity(position, v_pref, leg_start, goal)
+    gap = RobotGap(position, h.radius, robot_position, robot_radius, robot_bodies)
+    if gap >= h.reaction_distance:
+        if not walls:
+            return path_v
+        none = np.zeros((0, 2))
+        return orca_velocity(
+            position,
+            velocity,
+            h.radius,
+            none,
+            none,
+            np.zeros(0),
+            preferred_velocity=path_v,
+            max_speed=speed,
+            tau_obs=tau_obs,
+            time_step=dt,
+            obstacles=walls,
+        )
+    robot_p, robot_r = RobotAgents(position, robot_position, robot_radius, robot_bodies)
+
+    def Avoid(preferred):
+        return orca_velocity(
+            position,
+            velocity,
+            h.radius,
+            robot_p,
+            np.tile(robot_velocity, (len(robot_p), 1)),
+            robot_r + INSTRUCTED_CLEARANCE,
+            preferred_velocity=preferred,
+            max_speed=speed,
+            tau=h.reaction_distance / speed,
+            tau_obs=tau_obs,
+            time_step=dt,
+            shares=1.0,
+            obstacles=walls,
+        )
+
+    new_v = Avoid(path_v)
+    if np.allclose(new_v, path_v, rtol=0.0, atol=1e-9):
+        return new_v  # the robot is near but not in the way
+    # In the way: the person steps aside to its right. Head-on, ORCA alone
+    # would have it stop dead in front of the robot (the symmetric case).
+    c, s = np.cos(KEEP_RIGHT_ANGLE), np.sin(KEEP_RIGHT_ANGLE)
+    return Avoid(np.array([[c, s], [-s, c]]) @ path_v)
