@@ -17,6 +17,22 @@ from sm2ith_drake.scenario import HumanConfig
 from sm2ith_drake.systems.humans import CrowdSimulator, HumanEstimator, MocapSensor
 
 
+def _Step(humans, state, i, **kwargs):
+    """One crowd step of 0.05 s from step i's time; the robot (radius 0.5)
+    stands far away and there are no walls unless ``kwargs`` say otherwise."""
+    args = dict(
+        time=0.05 * i,
+        dt=0.05,
+        robot_position=[20.0, 20.0],
+        robot_velocity=[0.0, 0.0],
+        robot_radius=0.5,
+        obstacle_segments=np.zeros((0, 2, 2)),
+        tau=2.0,
+        tau_obs=0.5,
+    )
+    return StepCrowd(humans, state, **(args | kwargs))
+
+
 def _Walker(t):
     return np.array([-2.0, 1.0]) + t * np.array([0.8, -0.3])
 
@@ -194,18 +210,13 @@ def test_social_force_people_keep_off_an_arm_sticking_out():
         state = InitialCrowdState([person])
         gap = np.inf
         for i in range(200):
-            state = StepCrowd(
+            state = _Step(
                 [person],
                 state,
-                time=0.05 * i,
-                dt=0.05,
+                i,
                 robot_position=[0.0, 0.0],
-                robot_velocity=[0.0, 0.0],
                 robot_radius=0.3,
                 robot_bodies=bodies,
-                obstacle_segments=np.zeros((0, 2, 2)),
-                tau=2.0,
-                tau_obs=0.5,
             )
             x, y = state.positions[0]
             along = np.clip(x, 0.0, 1.5)
@@ -374,18 +385,7 @@ def test_instructed_person_off_its_path_walks_back_onto_it_and_not_through_a_wal
     state.positions[0] = [0.7, -0.3]
     trace = [state.positions[0].copy()]
     for i in range(200):
-        state = StepCrowd(
-            [human],
-            state,
-            time=0.05 * i,
-            dt=0.05,
-            robot_position=[20.0, 20.0],
-            robot_velocity=[0.0, 0.0],
-            robot_radius=0.5,
-            obstacle_segments=walls,
-            tau=2.0,
-            tau_obs=0.5,
-        )
+        state = _Step([human], state, i, obstacle_segments=walls)
         trace.append(state.positions[0].copy())
     trace = np.array(trace)
     clearance = np.min([[_Segment(p, a, b) for a, b in walls] for p in trace], axis=1)
@@ -452,17 +452,10 @@ def _GatedRun(humans, phase_of_time, steps=300):
     times, positions = [], []
     for i in range(steps):
         t = 0.05 * i
-        state = StepCrowd(
+        state = _Step(
             humans,
             state,
-            time=t,
-            dt=0.05,
-            robot_position=[20.0, 20.0],
-            robot_velocity=[0.0, 0.0],
-            robot_radius=0.5,
-            obstacle_segments=np.zeros((0, 2, 2)),
-            tau=2.0,
-            tau_obs=0.5,
+            i,
             phases=("go", "cross", "back"),
             phase_index=phase_of_time(t),
         )
