@@ -119,6 +119,11 @@ def _ValidateTasks(scenario: Scenario) -> None:
             )
         for k, w in enumerate(task.weight):
             _NonNegative(w, f"{where}.weight[{k}]")
+        if task.offset and task.kind != "base_position":
+            raise ScenarioError(
+                f"{where}.offset: only a base_position task has an offset, "
+                f"not {task.kind}"
+            )
         _NonNegative(task.terminal_weight, f"{where}.terminal_weight")
         _NonNegative(task.weighted_sum_weight, f"{where}.weighted_sum_weight")
     kinds = {t.name or t.kind: t.kind for t in scenario.tasks}

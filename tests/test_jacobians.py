@@ -35,6 +35,9 @@ def _Tasks(robot):
     return [
         TaskConfig(kind="ee_position", target=[1.0, 0.3, 0.8]),
         TaskConfig(kind="base_position", target=[2.0, -0.5]),
+        TaskConfig(
+            kind="base_position", name="base_ahead", target=[2.0, -0.5], offset=0.15
+        ),
         TaskConfig(kind="base_pose", target=[2.0, -0.5, 0.7]),
         TaskConfig(kind="ee_position_in_base", target=[0.5, 0.1, 0.9]),
         TaskConfig(kind="joint_posture", target=[0.2] * arm),

@@ -113,10 +113,27 @@ class _Selection(Task):
 
 
 class BasePosition(_Selection):
-    """e = (x, y) − target."""
+    """e = (x, y) − target; with ``offset`` d, the point d ahead along the
+    base's x axis: e = (x + d cos θ, y + d sin θ) − target (TaskConfig.offset)."""
 
-    def __init__(self, *, num_positions, **kwargs):
+    def __init__(self, *, num_positions, offset: float = 0.0, **kwargs):
         super().__init__(indices=[0, 1], num_positions=num_positions, **kwargs)
+        self.offset = float(offset)
+        if self.offset:
+            self._S[:, 2] = 1.0  # θ moves the point: in the pattern
+
+    def CalcErrorAndJacobian(self, qs, kin, target):
+        if not self.offset:
+            return super().CalcErrorAndJacobian(qs, kin, target)
+        c, s = np.cos(qs[:, 2]), np.sin(qs[:, 2])
+        e = qs[:, :2] - target
+        e[:, 0] += self.offset * c
+        e[:, 1] += self.offset * s
+        J = np.zeros((qs.shape[0],) + self._S.shape)
+        J[:, 0, 0] = J[:, 1, 1] = 1.0
+        J[:, 0, 2] = -self.offset * s
+        J[:, 1, 2] = self.offset * c
+        return e, J
 
 
 class BasePose(_Selection):
@@ -187,7 +204,7 @@ def MakeTask(config: TaskConfig, num_positions: int) -> Task:
     if config.kind == "ee_position_in_base":
         return EePositionInBase(**kwargs)
     if config.kind == "base_position":
-        return BasePosition(num_positions=num_positions, **kwargs)
+        return BasePosition(num_positions=num_positions, offset=config.offset, **kwargs)
     if config.kind == "base_pose":
         return BasePose(num_positions=num_positions, **kwargs)
     if config.kind == "joint_posture":
