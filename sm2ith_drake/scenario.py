@@ -61,15 +61,12 @@ class TaskConfig:
     terminal_weight: float = 5.0
     # Weight W_ℓ of this task in the weighted-sum baseline (Section V.A).
     weighted_sum_weight: float = 1.0
-    # base_position only: the point this far ahead of the base frame's origin
-    # along its x axis (m) is the one taken to the target. 0: the origin.
-    # For a differential-drive base (the Stretch 3) the origin is on the
-    # wheel axis, so at a standstill a turn in place does not move it to
-    # first order, and the RTI's linearization sees no use in turning (a
-    # robot facing away from its way, with the way behind it blocked, stays
-    # put); a point off the axis moves with both the drive and the turn.
-    # Measured on the doorway (Stretch 3, safe, 0.15 m for every method):
-    # fewer arrivals for SM²ITH and CVMM, more for React (README, Doorway).
+    # base_position only: the point this far ahead of the base origin along
+    # its x axis (m) is taken to the target (0: the origin). A differential
+    # drive's origin is on the wheel axis: at a standstill a turn in place
+    # does not move it to first order, so the RTI sees no use in turning; a
+    # point ahead moves with both. Measured on the doorway (Stretch 3, 0.15
+    # m, every method): fewer arrivals for SM²ITH and CVMM (README, Doorway).
     offset: float = 0.0
 
 
