@@ -503,6 +503,34 @@ def test_extra_rows_keep_the_robot_from_a_person_without_a_slot(predictor):
     assert np.min(h0[1:] - a * h0[:-1]) < -1e-2, h0
 
 
+@pytest.mark.parametrize("model", ["react", "cvmm"])
+def test_the_extras_move_on_at_their_measured_velocity_except_for_react(model):
+    """What the barrier assumes of an extra: CVMM's constant velocity, or
+    held where measured for React (which predicts no one moving); a slot
+    without a person (id −1) is not active."""
+    from sm2ith_drake.control.prediction.base import Cvmm, React
+    from sm2ith_drake.humans.messages import HumanPrediction
+    from sm2ith_drake.scenario import PredictionConfig
+
+    config = PredictionConfig(predictor=model, max_humans=1, max_extra_humans=2)
+    predictor = {"react": React, "cvmm": Cvmm}[model](config, horizon=3, time_step=0.2)
+    predictor.SetPrediction(
+        HumanPrediction(
+            model=model,
+            slot_ids=np.array([-1]),
+            active=np.array([False]),
+            positions=np.zeros((4, 1, 2)),
+            extra_ids=np.array([4, -1]),
+            extra_positions=np.array([[1.0, 2.0], [0.0, 0.0]]),
+            extra_velocities=np.array([[0.4, -0.2], [0.0, 0.0]]),
+        )
+    )
+    assert predictor.extra_active.tolist() == [True, False]
+    np.testing.assert_array_equal(predictor.extra_p0[0], [1.0, 2.0])
+    expected = [0.0, 0.0] if model == "react" else [0.4, -0.2]
+    np.testing.assert_array_equal(predictor.extra_v0[0], expected)
+
+
 def _FirstStep(controller, estimate, q0, nu0, targets):
     """The controller's first step with the people of ``estimate``; it must
     solve."""

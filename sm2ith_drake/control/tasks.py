@@ -119,8 +119,11 @@ class BasePosition(_Selection):
     def __init__(self, *, num_positions, offset: float = 0.0, **kwargs):
         super().__init__(indices=[0, 1], num_positions=num_positions, **kwargs)
         self.offset = float(offset)
-        if self.offset:
-            self._S[:, 2] = 1.0  # θ moves the point: in the pattern
+
+    def JacobianPattern(self, num_positions):
+        pattern = super().JacobianPattern(num_positions)
+        pattern[:, 2] |= bool(self.offset)  # θ moves a point off the origin
+        return pattern
 
     def CalcErrorAndJacobian(self, qs, kin, target):
         if not self.offset:
@@ -129,8 +132,7 @@ class BasePosition(_Selection):
         e = qs[:, :2] - target
         e[:, 0] += self.offset * c
         e[:, 1] += self.offset * s
-        J = np.zeros((qs.shape[0],) + self._S.shape)
-        J[:, 0, 0] = J[:, 1, 1] = 1.0
+        J = np.repeat(self._S[None], qs.shape[0], axis=0)  # ∂(x, y)/∂q
         J[:, 0, 2] = -self.offset * s
         J[:, 1, 2] = self.offset * c
         return e, J

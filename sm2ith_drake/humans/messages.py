@@ -106,6 +106,13 @@ class HumanPrediction:
     # time (the controller adds it to its StepRecord and its time budget).
     compute_time: float = 0.0
 
+    def ExtraVelocities(self) -> np.ndarray:
+        """(E, 2) the velocities the controller's barrier assumes the extras
+        move on at: the measured ones, or zero for React, which holds
+        everyone where measured."""
+        v = np.asarray(self.extra_velocities, dtype=float).reshape(-1, 2)
+        return np.zeros_like(v) if self.model == "react" else v
+
 
 @dataclass
 class MpcPlan:

@@ -214,9 +214,7 @@ class HumanVisualizer(LeafSystem):
         if not self._E or not ids.size:
             return
         p0 = np.asarray(prediction.extra_positions, dtype=float).reshape(-1, 2)
-        v0 = np.asarray(prediction.extra_velocities, dtype=float).reshape(-1, 2)
-        if prediction.model == "react":
-            v0 = np.zeros_like(v0)
+        v0 = prediction.ExtraVelocities()
         times = self._dt * np.arange(self._N + 1)
         positions = p0[None] + times[:, None, None] * v0[None]
         self._DrawPaths(positions, ids >= 0, self._ExtraPath, 0.04, t, self._E)

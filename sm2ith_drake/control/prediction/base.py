@@ -84,8 +84,7 @@ class Predictor:
         if self.extra_active.any():
             self.extra_p0 = np.asarray(prediction.extra_positions, dtype=float)
             # Moving on at their measured velocity; React holds everyone.
-            if self.name != "react":
-                self.extra_v0 = np.asarray(prediction.extra_velocities, dtype=float)
+            self.extra_v0 = prediction.ExtraVelocities()
 
     def ApplyBounds(self, lower: np.ndarray, upper: np.ndarray) -> None:
         """Pins the predicted positions (React, CVMM) — in place."""
