@@ -123,6 +123,7 @@ def FindingRows(study, rows) -> list[dict]:
                     "variant": variant,
                     "people": people,
                     "metric": f.metric,
+                    "humans": f.humans,
                     "comparisons": [
                         (f"{f.method} − {o}", d)
                         for o, d in zip(f.than, diffs, strict=True)

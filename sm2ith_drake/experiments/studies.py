@@ -376,9 +376,11 @@ STUDIES = {
         # 2 × 240 runs ≈ 70 min with --jobs 2; add a people model with
         # --people.
         people=("orca",),
-        # Issue 12's target, pooled over the numbers of people (pairs within
-        # each cell): SM²ITH reaches the goal, and reaches it without
-        # touching anyone, more often than CVMM and React.
+        # Issue 12's target: SM²ITH reaches the goal, and reaches it without
+        # touching anyone, more often than CVMM and React, pooled over the
+        # numbers of people (pairs within each cell); then success at each
+        # number of people, where the target (at least as often) is missed
+        # only by a "does not hold".
         findings=tuple(
             Finding(
                 "doorway",
@@ -394,6 +396,21 @@ STUDIES = {
                 ("reaches the goal", "success"),
                 ("reaches the goal without contact", CONTACT_FREE_SUCCESS),
             )
+        )
+        + tuple(
+            Finding(
+                "doorway",
+                f"{label}, {h} {'person' if h == 1 else 'people'}: SM²ITH "
+                "reaches the goal more often than CVMM and React",
+                robot,
+                "success",
+                "SM2ITH",
+                ("CVMM", "React"),
+                lower_is_better=False,
+                humans=(h,),
+            )
+            for robot, label in _ROBOTS
+            for h in DOORWAY_CROWDS
         ),
         summary=(
             "success",
