@@ -19,6 +19,7 @@ TASK_KINDS = (
     "base_pose",
     "ee_position_in_base",
     "joint_posture",
+    "face_point",
 )
 
 
@@ -47,7 +48,8 @@ class TaskConfig:
     Errors e_k (Section IV.A): ee_position: p_WE − target (3); base_position:
     (x, y) − target (2); base_pose: (x, y, θ) − target (3, θ wrapped);
     ee_position_in_base: R(θ)ᵀ(p_WE − p_WB) − target (3, "arm extended");
-    joint_posture: q_arm − target (arm DOF).
+    joint_posture: q_arm − target (arm DOF); face_point: the base's heading
+    minus the bearing of the target point (1; target [x, y]).
     """
 
     kind: str = "ee_position"

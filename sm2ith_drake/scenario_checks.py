@@ -29,13 +29,14 @@ from sm2ith_drake.scenario import (
     ScenarioError,
 )
 
-# The error size of each task kind that does not depend on the robot
+# The target size of each task kind that does not depend on the robot
 # (joint_posture: the number of arm joints).
 TASK_TARGET_SIZES = {
     "ee_position": 3,
     "base_position": 2,
     "base_pose": 3,
     "ee_position_in_base": 3,
+    "face_point": 2,
 }
 
 

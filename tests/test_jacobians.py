@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from sm2ith_drake.control.mpc_controller import MpcController
+from sm2ith_drake.control.tasks import FACE_POINT_RADIUS, MakeTask
 from sm2ith_drake.humans.messages import HumanEstimate
 from sm2ith_drake.robots import MobileManipulator
 from sm2ith_drake.scenario import (
@@ -41,6 +42,8 @@ def _Tasks(robot):
         TaskConfig(kind="base_pose", target=[2.0, -0.5, 0.7]),
         TaskConfig(kind="ee_position_in_base", target=[0.5, 0.1, 0.9]),
         TaskConfig(kind="joint_posture", target=[0.2] * arm),
+        TaskConfig(kind="face_point", target=[2.0, -0.5]),
+        TaskConfig(kind="face_point", name="face_near", target=[0.1, 0.15]),
     ]
 
 
@@ -154,3 +157,21 @@ def test_every_group_jacobian_matches_central_differences(robot_name, with_peopl
             f"{J[worst[0], cols[worst[1]]]:.3e}, differences "
             f"{F[worst[0], cols[worst[1]]]:.3e}"
         )
+
+
+def test_face_point_error_against_hand_values():
+    """face_point: 0 facing the point, the signed angle off it (π/2 turned
+    left of it), and faded out linearly within FACE_POINT_RADIUS of it."""
+    task = MakeTask(TaskConfig(kind="face_point", target=[2.0, 1.0]), 3)
+    qs = np.array(
+        [
+            [0.0, 1.0, 0.0],  # facing it, 2 m away
+            [0.0, 1.0, np.pi / 2],  # turned left of it
+            [2.0, 0.0, 0.0],  # 1 m straight below it, facing +x
+            [2.0, 1.0 - FACE_POINT_RADIUS / 2, np.pi],  # half the radius below
+        ]
+    )
+    e, _ = task.CalcErrorAndJacobian(qs, None, task.target)
+    np.testing.assert_allclose(
+        e[:, 0], [0.0, np.pi / 2, -np.pi / 2, 0.5 * np.pi / 2], atol=1e-12
+    )

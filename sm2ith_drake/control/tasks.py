@@ -22,6 +22,10 @@ class _Kinematics(Protocol):
     J_WE: np.ndarray  # (K, 3, n)
 
 
+# FacePoint's error fades out within this distance of its point (m).
+FACE_POINT_RADIUS = 0.5
+
+
 def WrapAngle(angle: np.ndarray) -> np.ndarray:
     """Wraps to [-π, π)."""
     return (np.asarray(angle) + np.pi) % (2 * np.pi) - np.pi
@@ -43,13 +47,17 @@ class Task:
         weight: np.ndarray | float = 1.0,
         terminal_weight: float = 5.0,
         weighted_sum_weight: float = 1.0,
+        target_dim: int | None = None,
     ):
+        """``target_dim``: the target's size when it is not the error's
+        ``dim`` (e.g. a point to face)."""
         self.name = name
         self.dim = dim
         self.target = np.asarray(target, dtype=float).reshape(-1)
-        if self.target.size != dim:
+        size = dim if target_dim is None else target_dim
+        if self.target.size != size:
             raise ValueError(
-                f"task '{name}' needs a target of size {dim}, got {self.target.size}"
+                f"task '{name}' needs a target of size {size}, got {self.target.size}"
             )
         w = np.broadcast_to(np.asarray(weight, dtype=float).reshape(-1), (dim,))
         self.weight = np.array(w)
@@ -150,6 +158,40 @@ class BasePose(_Selection):
         )
 
 
+class FacePoint(Task):
+    """e = w(r) · wrap(θ − atan2(t_y − y, t_x − x)): the base turned to face
+    the target point t (a differential drive moves along its heading), with
+    w(r) = min(1, r / FACE_POINT_RADIUS) fading the error out within that
+    distance r of the point, so the base does not spin where the bearing is
+    undefined."""
+
+    def __init__(self, **kwargs):
+        super().__init__(dim=1, target_dim=2, **kwargs)
+
+    def JacobianPattern(self, num_positions):
+        pattern = np.zeros((1, num_positions), dtype=bool)
+        pattern[0, :NUM_BASE_POSITIONS] = True
+        return pattern
+
+    def CalcErrorAndJacobian(self, qs, kin, target):
+        d = np.asarray(target, dtype=float)[None, :2] - qs[:, :2]  # (K, 2)
+        r2 = np.maximum(np.sum(d * d, axis=1), 1e-12)
+        r = np.sqrt(r2)
+        a = WrapAngle(qs[:, 2] - np.arctan2(d[:, 1], d[:, 0]))
+        inside = r < FACE_POINT_RADIUS
+        w = np.where(inside, r / FACE_POINT_RADIUS, 1.0)
+        J = np.zeros((qs.shape[0], 1, qs.shape[1]))
+        # ∂a/∂(x, y, θ) = (−d_y, d_x) / r², 1;  ∂w/∂(x, y) = −d / (r R) inside.
+        J[:, 0, 0] = w * (-d[:, 1] / r2) + a * np.where(
+            inside, -d[:, 0] / (r * FACE_POINT_RADIUS), 0.0
+        )
+        J[:, 0, 1] = w * (d[:, 0] / r2) + a * np.where(
+            inside, -d[:, 1] / (r * FACE_POINT_RADIUS), 0.0
+        )
+        J[:, 0, 2] = w
+        return (w * a)[:, None], J
+
+
 class JointPosture(_Selection):
     """e = q_arm − target (all non-base coordinates)."""
 
@@ -211,4 +253,6 @@ def MakeTask(config: TaskConfig, num_positions: int) -> Task:
         return BasePose(num_positions=num_positions, **kwargs)
     if config.kind == "joint_posture":
         return JointPosture(num_positions=num_positions, **kwargs)
+    if config.kind == "face_point":
+        return FacePoint(**kwargs)
     raise ValueError(f"unknown task kind '{config.kind}'")
