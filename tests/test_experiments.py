@@ -683,16 +683,10 @@ def test_findings_table_of_synthetic_rows():
     assert b["verdict"] in (NOT_DISTINGUISHABLE, DOES_NOT_HOLD)
 
 
-def test_contact_free_success_and_the_doorway_finding():
-    """A run counts as a contact-free success only when it reached the goal
-    and touched nobody; with SM²ITH contact-free on every seed where CVMM
-    and React touch someone, the doorway finding on it holds, while the one
-    on success alone (all reach) is not distinguishable."""
-    assert Value({"success": True, "collision": False}, CONTACT_FREE_SUCCESS) == 1.0
-    assert Value({"success": True, "collision": True}, CONTACT_FREE_SUCCESS) == 0.0
-    assert Value({"success": False, "collision": False}, CONTACT_FREE_SUCCESS) == 0.0
-    assert math.isnan(Value({"success": True}, CONTACT_FREE_SUCCESS))
-    rows = [
+def _DoorwayRows(*, success, collision):
+    """Synthetic Stretch 3 doorway rows (1 and 2 people, 5 seeds, the three
+    methods) with success and collision as functions of (people, method)."""
+    return [
         {
             "status": "ok",
             "family": "stretch3",
@@ -702,13 +696,27 @@ def test_contact_free_success_and_the_doorway_finding():
             "method": method,
             "variant": "safe",
             "people": "orca",
-            "success": True,
-            "collision": method != "SM2ITH",
+            "success": success(h, method),
+            "collision": collision(h, method),
         }
         for h in (1, 2)
         for seed in range(5)
         for method in ("SM2ITH", "CVMM", "React")
     ]
+
+
+def test_contact_free_success_and_the_doorway_finding():
+    """A run counts as a contact-free success only when it reached the goal
+    and touched nobody; with SM²ITH contact-free on every seed where CVMM
+    and React touch someone, the doorway finding on it holds, while the one
+    on success alone (all reach) is not distinguishable."""
+    assert Value({"success": True, "collision": False}, CONTACT_FREE_SUCCESS) == 1.0
+    assert Value({"success": True, "collision": True}, CONTACT_FREE_SUCCESS) == 0.0
+    assert Value({"success": False, "collision": False}, CONTACT_FREE_SUCCESS) == 0.0
+    assert math.isnan(Value({"success": True}, CONTACT_FREE_SUCCESS))
+    rows = _DoorwayRows(
+        success=lambda h, method: True, collision=lambda h, method: method != "SM2ITH"
+    )
     entries = [
         e for e in FindingRows(STUDIES["doorway"], rows) if e["robot"] == "stretch3"
     ]
@@ -727,23 +735,10 @@ def test_the_doorway_target_at_each_number_of_people():
     where the others arrive is a "does not hold" there, while with 1
     person (all arrive) it is not distinguishable; a count without runs
     has no pairs."""
-    rows = [
-        {
-            "status": "ok",
-            "family": "stretch3",
-            "scenario": "doorway_stretch3",
-            "humans": h,
-            "seed": seed,
-            "method": method,
-            "variant": "safe",
-            "people": "orca",
-            "success": not (h == 2 and method == "SM2ITH"),
-            "collision": False,
-        }
-        for h in (1, 2)
-        for seed in range(5)
-        for method in ("SM2ITH", "CVMM", "React")
-    ]
+    rows = _DoorwayRows(
+        success=lambda h, method: not (h == 2 and method == "SM2ITH"),
+        collision=lambda h, method: False,
+    )
     by_claim = {
         e["claim"]: e
         for e in FindingRows(STUDIES["doorway"], rows)
