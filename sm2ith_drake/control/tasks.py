@@ -174,20 +174,18 @@ class FacePoint(Task):
         return pattern
 
     def CalcErrorAndJacobian(self, qs, kin, target):
-        d = np.asarray(target, dtype=float)[None, :2] - qs[:, :2]  # (K, 2)
+        d = np.asarray(target, dtype=float)[None] - qs[:, :2]  # (K, 2)
         r2 = np.maximum(np.sum(d * d, axis=1), 1e-12)
         r = np.sqrt(r2)
         a = WrapAngle(qs[:, 2] - np.arctan2(d[:, 1], d[:, 0]))
         inside = r < FACE_POINT_RADIUS
         w = np.where(inside, r / FACE_POINT_RADIUS, 1.0)
+        # ∂a/∂(x, y) = (−d_y, d_x) / r², ∂a/∂θ = 1; ∂w/∂(x, y) = −d / (r R)
+        # inside the radius, 0 outside.
+        da = np.stack([-d[:, 1], d[:, 0]], axis=1) / r2[:, None]
+        dw = np.where(inside[:, None], -d / (r * FACE_POINT_RADIUS)[:, None], 0.0)
         J = np.zeros((qs.shape[0], 1, qs.shape[1]))
-        # ∂a/∂(x, y, θ) = (−d_y, d_x) / r², 1;  ∂w/∂(x, y) = −d / (r R) inside.
-        J[:, 0, 0] = w * (-d[:, 1] / r2) + a * np.where(
-            inside, -d[:, 0] / (r * FACE_POINT_RADIUS), 0.0
-        )
-        J[:, 0, 1] = w * (d[:, 0] / r2) + a * np.where(
-            inside, -d[:, 1] / (r * FACE_POINT_RADIUS), 0.0
-        )
+        J[:, 0, :2] = w[:, None] * da + a[:, None] * dw
         J[:, 0, 2] = w
         return (w * a)[:, None], J
 
