@@ -371,6 +371,32 @@ def test_instructed_person_never_walks_into_an_oncoming_robot():
     np.testing.assert_allclose(trace[-1], [8, 0], atol=0.05)
 
 
+def test_instructed_people_keep_clear_of_each_other():
+    """Three instructed people whose paths cross at one point, the robot far
+    away: they pass one another without contact (told a route, not to walk
+    through each other) and reach their goals; scripted people on the same
+    paths overlap, so the check can fail."""
+    paths = [
+        dict(start=[0, 0], waypoints=[[6, 0]]),
+        dict(start=[6, 0.1], waypoints=[[0, 0.1]]),
+        dict(start=[3, -3], waypoints=[[3, 3]]),
+    ]
+
+    def Closest(behavior):
+        trace = _Crowd([HumanConfig(behavior=behavior, **p) for p in paths], 200)
+        gaps = [
+            np.linalg.norm(trace[:, i] - trace[:, j], axis=1) - 0.6
+            for i in range(3)
+            for j in range(i)
+        ]
+        return np.min(gaps), trace[-1]
+
+    assert Closest("scripted")[0] < -0.3
+    gap, end = Closest("instructed")
+    assert gap > -1e-3
+    np.testing.assert_allclose(end, [[6, 0], [0, 0.1], [3, 3]], atol=0.25)
+
+
 def test_instructed_person_off_its_path_walks_back_onto_it_and_not_through_a_wall():
     """A person who stepped aside beside a door (the wall y = 0 with a door
     |x| < 0.5, the person pressed against the wall at (0.7, −0.3)) and whose

@@ -184,6 +184,29 @@ def test_against_rvo2_on_random_scenes():
     assert close >= 0.99 * scenes, (close, lp3)
 
 
+def test_a_time_horizon_per_agent_gives_each_agent_its_own_lines():
+    """With τ given per other agent, each agent's line is the one a call
+    with its τ alone builds, in the same (nearest-first) order."""
+    rng = np.random.default_rng(11)
+    for trial in range(50):
+        P, V, R, _, _ = _RandomScene(rng, trial)
+        M = len(P) - 1
+        taus = rng.choice([0.7, 2.0, 3.5], size=M)
+        shares = rng.choice([0.5, 1.0], size=M)
+        args = (P[0], V[0], R[0], P[1:], V[1:], R[1:])
+        pts, dirs, n_obs = orca_half_planes(
+            *args, tau=taus, time_step=0.2, shares=shares
+        )
+        assert n_obs == 0 and len(pts) == M
+        order = np.argsort(np.sum((P[1:] - P[0]) ** 2, axis=1), kind="stable")
+        for row, i in enumerate(order):
+            p_i, d_i, _ = orca_half_planes(
+                *args, tau=taus[i], time_step=0.2, shares=shares
+            )
+            np.testing.assert_array_equal(pts[row], p_i[row])
+            np.testing.assert_array_equal(dirs[row], d_i[row])
+
+
 def test_vectorized_agent_lines_match_the_reference():
     """The MPC's half-planes (normal form, shares, per-pair batching over
     (k, j, i)) equal the reference lines; the shared geometry itself is held

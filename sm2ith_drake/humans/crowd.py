@@ -21,8 +21,10 @@ The crowd moves with time step Δt_c. Each human has a behaviour:
   the model" of the safety tests;
 - ``instructed``: a person told to walk a fixed path (the paper's
   participants): it walks its waypoints at its speed like ``scripted``,
-  ignoring the robot and everybody, until the robot (its nearest body, or
-  the base disc) comes within ``reaction_distance`` of the person's surface.
+  ignoring the robot (not the other people, whom it avoids as the crowd
+  does: nobody is told to walk through others) until the robot (its
+  nearest body, or the base disc) comes within ``reaction_distance`` of the
+  person's surface.
   Then it avoids the robot late: each step, the velocity closest to its
   path's that keeps clear of the robot alone for a short horizon (RVO2's
   velocity selection with the robot's base and nearest body as agents,
@@ -216,6 +218,7 @@ def StepCrowd(
     social = [j for j, h in enumerate(humans) if h.behavior == "social_force"]
     for j, h in enumerate(humans):
         waiting = time < start_times[j]
+        others = [i for i in range(H) if i != j]
         if h.behavior == "instructed":
             w = state.waypoint[j]
             new_v[j] = InstructedVelocity(
@@ -232,6 +235,8 @@ def StepCrowd(
                 obstacle_segments=obstacle_segments,
                 tau_obs=tau_obs,
                 dt=dt,
+                others=(p[others], v[others], radii[others]),
+                tau=tau,
             )
         elif h.behavior == "scripted" or (waiting and h.behavior != "orca"):
             new_v[j] = v_pref[j]
@@ -244,7 +249,6 @@ def StepCrowd(
                 step = min(h.speed, (gap - ADVERSARY_STOP_GAP) / dt)
                 new_v[j] = d / np.linalg.norm(d) * step
         elif h.behavior == "orca":
-            others = [i for i in range(H) if i != j]
             robot_p, robot_r = RobotAgents(
                 p[j], robot_position, robot_radius, robot_bodies
             )

@@ -8,7 +8,13 @@ robot) it walks back onto it, aiming ``PATH_LOOKAHEAD`` ahead along the
 leg, as someone told to follow a route does; heading straight for the
 waypoint instead can cut through a wall (a door's jamb) or pin the person in
 the corner beside a door, where its velocity toward the waypoint points
-into the wall. Walls are always kept (RVO2's obstacle lines).
+into the wall. Walls are always kept (RVO2's obstacle lines), and so are
+the other people: instructed people are told a route, not to walk through
+each other, so they avoid one another as the crowd does (reciprocal ORCA
+over the crowd's τ). Without that, in the doorway with 3 people they
+overlapped in every run (up to 0.6 m deep, for 11–76 % of a run), a scene
+no sensor reports and SM²ITH's model of people avoiding one another
+misreads.
 """
 
 import numpy as np
@@ -68,6 +74,8 @@ def InstructedVelocity(
     obstacle_segments,
     tau_obs,
     dt,
+    others=None,
+    tau=2.0,
 ):
     """An instructed person's velocity. Its path's velocity (PathVelocity;
     ``v_pref`` on the path), kept off the walls, while the robot is farther
@@ -75,44 +83,53 @@ def InstructedVelocity(
     clear of the robot alone (its bodies inflated by INSTRUCTED_CLEARANCE)
     and the walls, the person taking all of the avoidance (share 1: it does
     not count on the robot), for as long as it takes the person to walk its
-    reaction distance (1 m at 1 m/s: 1 s, half the crowd's τ)."""
+    reaction distance (1 m at 1 m/s: 1 s, half the crowd's τ). ``others``
+    (positions (M, 2), velocities (M, 2), radii (M,)): the other people,
+    avoided reciprocally over ``tau`` (the crowd's) in either case."""
     walls = [tuple(s) for s in obstacle_segments]
     speed = max(h.speed, 1e-3)
     path_v = PathVelocity(position, v_pref, leg_start, goal)
     gap = RobotGap(position, h.radius, robot_position, robot_radius, robot_bodies)
+    people_p, people_v, people_r = (
+        (np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0)) if others is None else others
+    )
+    people = len(people_p)
     if gap >= h.reaction_distance:
-        if not walls:
+        if not walls and not people:
             return path_v
-        none = np.zeros((0, 2))
         return orca_velocity(
             position,
             velocity,
             h.radius,
-            none,
-            none,
-            np.zeros(0),
+            people_p,
+            people_v,
+            people_r,
             preferred_velocity=path_v,
             max_speed=speed,
+            tau=tau,
             tau_obs=tau_obs,
             time_step=dt,
             obstacles=walls,
         )
     robot_p, robot_r = RobotAgents(position, robot_position, robot_radius, robot_bodies)
+    robots = len(robot_p)
+    reaction_time = h.reaction_distance / speed
 
     def Avoid(preferred):
+        # The robot alone late, taking it all; the others as the crowd does.
         return orca_velocity(
             position,
             velocity,
             h.radius,
-            robot_p,
-            np.tile(robot_velocity, (len(robot_p), 1)),
-            robot_r + INSTRUCTED_CLEARANCE,
+            np.vstack([robot_p, people_p]),
+            np.vstack([np.tile(robot_velocity, (robots, 1)), people_v]),
+            np.concatenate([robot_r + INSTRUCTED_CLEARANCE, people_r]),
             preferred_velocity=preferred,
             max_speed=speed,
-            tau=h.reaction_distance / speed,
+            tau=np.r_[np.full(robots, reaction_time), np.full(people, tau)],
             tau_obs=tau_obs,
             time_step=dt,
-            shares=1.0,
+            shares=np.r_[np.ones(robots), np.full(people, 0.5)],
             obstacles=walls,
         )
 

@@ -296,7 +296,8 @@ def orca_half_planes(
         position, velocity, radius: the agent.
         other_positions, other_velocities, other_radii: the other agents
             (M, 2), (M, 2), (M,).
-        tau, tau_obs: time horizons for agents and static obstacles (s).
+        tau, tau_obs: time horizons for agents (one, or one per other
+            agent (M,)) and static obstacles (s).
         time_step: the simulation step (used when already colliding).
         shares: responsibility per other agent (default 0.5: reciprocal).
         obstacles: polygons (vertex lists, counter-clockwise) or segments.
@@ -329,13 +330,18 @@ def orca_half_planes(
     dist_sq = np.sum((other_positions - position) ** 2, axis=1)
     order = np.argsort(dist_sq, kind="stable")
     order = order[dist_sq[order] < neighbor_dist**2]
-    u, dirs = orca_agent_lines(
-        other_positions[order] - position,
-        velocity - other_velocities[order],
-        radius + other_radii[order],
-        tau=tau,
-        time_step=time_step,
-    )
+    taus = np.broadcast_to(np.asarray(tau, dtype=float), (len(other_positions),))
+    taus = taus[order]
+    u, dirs = np.empty((len(order), 2)), np.empty((len(order), 2))
+    for t in np.unique(taus):
+        rows = taus == t
+        u[rows], dirs[rows] = orca_agent_lines(
+            other_positions[order[rows]] - position,
+            velocity - other_velocities[order[rows]],
+            radius + other_radii[order[rows]],
+            tau=t,
+            time_step=time_step,
+        )
     lines += list(zip(velocity + shares[order, None] * u, dirs, strict=True))
     points = np.array([p for p, _ in lines]).reshape(-1, 2)
     directions = np.array([d for _, d in lines]).reshape(-1, 2)
