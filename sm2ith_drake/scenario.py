@@ -235,12 +235,9 @@ class PredictionConfig:
     # measured velocity low-pass filtered with this time constant (s), an
     # estimate of where they mean to go that a short swerve around the robot
     # does not erase. 0: the latest measured velocity (the paper's example).
-    # Measured with 0 and 2 s: on the 28-run SM²ITH safety campaign the
-    # deepest intrusion into the barrier's margin went from 8.5 to 3.7 cm
-    # (a person who swerved around the robot was predicted to keep swerving
-    # while they steered back toward their goal), but in the 150 study runs
-    # sub-centimetre contacts went from 2 to 7 and the Ridgeback's time in
-    # intimate space rose; so the default stays at the paper's choice.
+    # With 2 s the deepest barrier intrusion of a 28-run safety campaign
+    # fell from 8.5 to 3.7 cm, but in 150 study runs sub-centimetre contacts
+    # rose from 2 to 7: the default stays at the paper's choice.
     preferred_velocity_time_constant: float = 0.0
     # Other humans each predicted human reacts to (RVO2's maxNeighbors): the
     # ones that come closest within the horizon; the robot always counts.
@@ -260,6 +257,9 @@ class PredictionConfig:
     # to the robot only, and the factorization cost linear in the number of
     # people (see README, People).
     neighbor_derivatives: bool = False
+    # Turn a v_pref that walks into a wall onto the nearest free line (the
+    # person steers for the opening; control/prediction/intent.py).
+    steer_around_walls: bool = False
 
 
 @dataclass

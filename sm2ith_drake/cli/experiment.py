@@ -52,6 +52,7 @@ def _Experiment(args) -> int:
             variants=variants,
             people=people,
             scenario_text=args.scenario_text,
+            methods=_Methods(args),
             executor=args.executor,
             address=args.address,
         )
@@ -69,6 +70,12 @@ def _Experiment(args) -> int:
         print(f"plot:   {plot}")
     print(f"report: {result.report}")
     return 1 if failed else 0
+
+
+def _Methods(args):
+    """--methods as a tuple (None: all the study's methods)."""
+    names = tuple(m.name for m in STUDIES[args.study].methods)
+    return _List(args.methods, names, "--methods")
 
 
 def _List(text, valid, option):
@@ -175,6 +182,13 @@ def AddExperimentCommands(sub) -> None:
         + ", ".join(PEOPLE_MODELS + (AS_SCENARIO,))
         + " (the behaviour of every person who walks to goals; scripted "
         "and adversarial people stay; default: the study's)",
+    )
+    exp.add_argument(
+        "--methods",
+        default=None,
+        help="only these of the study's methods, a comma list (default: "
+        "all), e.g. SM2ITH after a change that only SM²ITH's predictor sees; "
+        "the others' rows can then be copied in from an earlier CSV",
     )
     exp.add_argument("--jobs", type=int, default=2, help="parallel processes")
     exp.add_argument("--out", default="out/experiments", help="output directory")

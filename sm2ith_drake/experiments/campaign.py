@@ -203,6 +203,7 @@ def RunCampaign(
     variants: tuple | list | None = None,
     people: tuple | list | None = None,
     scenario_text: str = "",
+    methods: tuple | list | None = None,
     executor: str = "local",
     address: str | None = None,
     progress: bool = True,
@@ -214,7 +215,7 @@ def RunCampaign(
         study: the Study.
         out_dir: the output directory (created).
         jobs: parallel processes (local executor).
-        runs, only, duration, variants, people: see PlanRuns.
+        runs, only, duration, variants, people, methods: see PlanRuns.
         executor: "local" (a process pool on this machine) or "ray" (a Ray
             cluster; ``address`` as for ``ray.init``, default a local Ray).
         progress: print a progress bar to stderr.
@@ -231,6 +232,7 @@ def RunCampaign(
         variants=variants,
         people=people,
         scenario_text=scenario_text,
+        methods=methods,
     )
     if not specs:
         raise ValueError(f"no runs in study '{study.name}' match --only {only!r}")

@@ -59,6 +59,7 @@ def PlanRuns(
     variants: tuple | list | None = None,
     people: tuple | list | None = None,
     scenario_text: str = "",
+    methods: tuple | list | None = None,
 ) -> list[RunSpec]:
     """The study's runs: every cell × variant × people model × method × seed,
     every method on the same seeds (paired).
@@ -73,6 +74,8 @@ def PlanRuns(
         scenario_text: YAML applied to every run under the method's and the
             variant's overrides (which win where they overlap): one change,
             made alike for every method, e.g. '{safety: {guard_gap: 0.1}}'.
+        methods: run only these of the study's methods (default: all),
+            e.g. to re-run one method after a change that only it sees.
     """
     variants = tuple(study.variants if variants is None else variants)
     people = tuple(study.people if people is None else people)
@@ -84,6 +87,13 @@ def PlanRuns(
                 f"unknown people model {p!r}; valid: "
                 + ", ".join(PEOPLE_MODELS + (AS_SCENARIO,))
             )
+    names = [m.name for m in study.methods]
+    unknown = [m for m in methods or () if m not in names]
+    if unknown:
+        raise ValueError(
+            f"study {study.name} has no method {', '.join(unknown)}; "
+            "valid: " + ", ".join(names)
+        )
     seeds = study.seeds if runs is None else runs
     specs = []
     for cell in study.cells:
@@ -92,6 +102,8 @@ def PlanRuns(
         for variant in variants:
             for model in people:
                 for method in study.methods:
+                    if methods and method.name not in methods:
+                        continue
                     text = MergeYaml(
                         scenario_text, method.scenario_text, VariantText(variant)
                     )

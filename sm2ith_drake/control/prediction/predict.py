@@ -21,6 +21,7 @@ from sm2ith_drake.control.prediction.base import (
     ConstantVelocityPrediction,
     HeldPrediction,
 )
+from sm2ith_drake.control.prediction.intent import SteerAroundWalls
 from sm2ith_drake.control.prediction.orca_model import OrcaModel
 from sm2ith_drake.control.prediction.slots import (
     AssignSlots,
@@ -130,6 +131,18 @@ class HumanPredictorModel:
             hysteresis=cfg.neighbor_hysteresis,
             num_extra=cfg.max_extra_humans,
         )
+        if (
+            cfg.predictor == "orca_kkt"
+            and cfg.steer_around_walls
+            and len(self.orca.segments)
+        ):
+            slots.v_pref = SteerAroundWalls(
+                slots.p0,
+                slots.v_pref,
+                self.orca.segments,
+                self.human_radius,
+                lookahead=self.N * self.dt,
+            )
         neighbors = state.neighbors
         actions = multipliers = None
         if cfg.predictor == "cvmm":
