@@ -194,6 +194,12 @@ def test_studies_pair_seeds_and_span_the_axes():
     dw = PlanRuns(STUDIES["doorway"], **one)
     assert len(dw) == 2 * 4 * 3 * 10
     assert {r.humans for r in dw} == {1, 2, 3, 5}
+    # One method re-run alone (after a change only it sees) keeps its seeds.
+    sm = PlanRuns(STUDIES["doorway"], methods=["SM2ITH"], **one)
+    assert {r.method for r in sm} == {"SM2ITH"}
+    assert {r.run_id for r in sm} == {r.run_id for r in dw if r.method == "SM2ITH"}
+    with pytest.raises(ValueError, match="no method Cvmm"):
+        PlanRuns(STUDIES["doorway"], methods=["Cvmm"])
     with pytest.raises(ValueError, match="variant"):
         PlanRuns(STUDIES["doorway"], variants=["fast"])
     with pytest.raises(ValueError, match="people"):
@@ -352,6 +358,9 @@ def test_a_foreign_csv_is_refused(tmp_path):
     result = _cli("experiment", "pursuer", "--out", str(tmp_path), cwd=tmp_path)
     assert result.returncode == 2
     assert "other columns" in result.stderr and "Traceback" not in result.stderr
+    bad = _cli("experiment", "doorway", "--methods", "SM2ITH,Cvmm", cwd=tmp_path)
+    assert bad.returncode == 2 and "Traceback" not in bad.stderr
+    assert "--methods takes a comma list of: SM2ITH, CVMM, React" in bad.stderr
 
 
 # --- Issue 12: the paper's metrics, the doorway's people, paired statistics.

@@ -422,6 +422,41 @@ def test_instructed_person_off_its_path_walks_back_onto_it_and_not_through_a_wal
     assert np.any(on_path & (trace[:, 1] > 0.3) & (trace[:, 1] < 2.0))
 
 
+def test_instructed_person_beside_a_door_jamb_walks_in_past_a_robot_to_the_side():
+    """The doorway's deadlock (seed 21, 1 person): the person pressed
+    against the wall beside the door's jamb, its path through the door, the
+    robot's base standing within its reaction distance a metre off to its
+    left. The person slides along the wall into the door and on to its goal,
+    clear of the robot and the walls. It used to keep right there (the rule
+    for a robot ahead), which turned it into the wall for good."""
+    walls = np.array([[[-1.0, 0.0], [-0.5, 0.0]], [[0.5, 0.0], [1.0, 0.0]]])
+    human = HumanConfig(
+        behavior="instructed", start=[0.25, -3.1], waypoints=[[-0.2, 3.1]], speed=1.5
+    )
+    robot = np.array([-0.45, -0.25])
+    state = InitialCrowdState([human])
+    state.positions[0] = [0.55, -0.3]
+    gap = np.linalg.norm(state.positions[0] - robot) - 0.28 - human.radius
+    assert gap < human.reaction_distance
+    trace = [state.positions[0].copy()]
+    for i in range(160):
+        state = _Step(
+            [human],
+            state,
+            i,
+            obstacle_segments=walls,
+            robot_position=robot,
+            robot_radius=0.28,
+        )
+        trace.append(state.positions[0].copy())
+    trace = np.array(trace)
+    assert np.min(np.linalg.norm(trace - robot, axis=1)) > 0.28 + human.radius
+    clearance = np.min([[_Segment(p, a, b) for a, b in walls] for p in trace], axis=1)
+    assert np.min(clearance) > human.radius - 0.02
+    assert trace[80, 1] > 0.5  # through the door within 4 s
+    np.testing.assert_allclose(trace[-1], [-0.2, 3.1], atol=0.05)
+
+
 def test_instructed_path_velocity_is_the_waypoints_on_the_path():
     v = np.array([0.6, 0.8])
     # On the leg (and within the tolerance of it): straight to the waypoint.

@@ -36,6 +36,20 @@ INSTRUCTED_CLEARANCE = 0.1
 # within that distance of is on its new leg, as a scripted person.
 PATH_TOLERANCE = 0.25
 PATH_LOOKAHEAD = 1.0
+# The person keeps right only for a robot ahead: its base within this angle
+# of the path's direction (rad). A robot to the side (a person pinned
+# beside a door jamb, the robot a metre off to one side of the door) is left
+# to ORCA: stepping right there turned the person into the wall, for good.
+HEAD_ON_ANGLE = np.radians(45.0)
+
+
+def _HeadOn(position, path_v, robot_position) -> bool:
+    """Whether the robot's base is ahead along ``path_v`` (HEAD_ON_ANGLE)."""
+    to_robot = np.asarray(robot_position, dtype=float)[:2] - position
+    dist, speed = np.linalg.norm(to_robot), np.linalg.norm(path_v)
+    if dist < 1e-9 or speed < 1e-12:
+        return True
+    return float(to_robot @ path_v) >= np.cos(HEAD_ON_ANGLE) * dist * speed
 
 
 def PathVelocity(position, v_pref, leg_start, goal):
@@ -95,9 +109,11 @@ def InstructedVelocity(
         (np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0)) if others is None else others
     )
     people = len(people_p)
-    if gap >= h.reaction_distance:
+
+    def Unhindered(preferred):
+        # The walls and the other people alone.
         if not walls and not people:
-            return path_v
+            return preferred
         return orca_velocity(
             position,
             velocity,
@@ -105,13 +121,16 @@ def InstructedVelocity(
             people_p,
             people_v,
             people_r,
-            preferred_velocity=path_v,
+            preferred_velocity=preferred,
             max_speed=speed,
             tau=tau,
             tau_obs=tau_obs,
             time_step=dt,
             obstacles=walls,
         )
+
+    if gap >= h.reaction_distance:
+        return Unhindered(path_v)
     robot_p, robot_r = RobotAgents(position, robot_position, robot_radius, robot_bodies)
     robots = len(robot_p)
     reaction_time = h.reaction_distance / speed
@@ -135,9 +154,14 @@ def InstructedVelocity(
         )
 
     new_v = Avoid(path_v)
-    if np.allclose(new_v, path_v, rtol=0.0, atol=1e-9):
-        return new_v  # the robot is near but not in the way
-    # In the way: the person steps aside to its right. Head-on, ORCA alone
-    # would have it stop dead in front of the robot (the symmetric case).
+    if not _HeadOn(position, path_v, robot_position) or np.allclose(
+        new_v, Unhindered(path_v), rtol=0.0, atol=1e-9
+    ):
+        # Not ahead, or ahead but not in the way (what changes the path's
+        # velocity is a wall or another person): ORCA's avoidance as it is.
+        return new_v
+    # Ahead and in the way: the person steps aside to its right. Head-on,
+    # ORCA alone would have it stop dead in front of the robot (the
+    # symmetric case).
     c, s = np.cos(KEEP_RIGHT_ANGLE), np.sin(KEEP_RIGHT_ANGLE)
     return Avoid(np.array([[c, s], [-s, c]]) @ path_v)
