@@ -100,8 +100,7 @@ def test_free_slow_and_wall_free_lines_are_kept():
 
 def test_the_mpc_predicts_with_the_turned_preferred_velocity():
     """Through the predictor: with the option the ORCA model's v_pref (which
-    the KKT embedding uses) is the turned one; without, the measurement;
-    CVMM and React are untouched by it."""
+    the KKT embedding uses) is the turned one; without, the measurement."""
     robot = MobileManipulator("stretch3")
     walls = [ObstacleConfig(vertices=s.tolist()) for s in DOOR]
     person = HumanEstimate(ids=[3], positions=[[0.6, -1.5]], velocities=[[0.1, 1.4]])

@@ -14,7 +14,7 @@ turn limit, or that already runs free, is left as it is.
 
 import numpy as np
 
-from sm2ith_drake.geometry import segment_closest_points
+from sm2ith_drake.geometry import point_segment_distance_2d, segment_closest_points
 
 # Turns tried (rad), smallest first, alternating sides.
 _STEP = np.deg2rad(5.0)
@@ -72,10 +72,7 @@ def SteerAroundWalls(
             segments[None, :, 1, :],
         )
         clearance = np.linalg.norm(c1 - c2, axis=-1)
-        _, _, a, b = segment_closest_points(
-            p[None, :], p[None, :], segments[:, 0, :], segments[:, 1, :]
-        )
-        now = np.linalg.norm(a - b, axis=-1)
+        now, _, _ = point_segment_distance_2d(segments[:, 0], segments[:, 1], p)
         needed = np.minimum(radius, now) - 1e-6
         free = np.all(clearance >= needed[None, :], axis=1)
         if free[0] or not np.any(free):
