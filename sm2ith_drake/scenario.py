@@ -9,9 +9,10 @@ schema cannot check are checked by :mod:`sm2ith_drake.scenario_checks`.
 
 from dataclasses import dataclass, field
 
-from pydrake.lcm import DrakeLcmParams
 from pydrake.solvers import SolverOptions
 from pydrake.systems.analysis import SimulatorConfig
+
+from sm2ith_drake.scenario_hardware import HardwareConfig
 
 TASK_KINDS = (
     "ee_position",
@@ -70,6 +71,31 @@ class TaskConfig:
     # point ahead moves with both. Measured on the doorway (Stretch 3, 0.15
     # m, every method): fewer arrivals for SM²ITH and CVMM (README, Doorway).
     offset: float = 0.0
+
+
+@dataclass
+class RecoveryConfig:
+    """The way out of a stall (control/recovery.py, not in the paper): when
+    the base has moved less than ``stall_distance`` in ``stall_time`` more
+    than ``goal_tolerance`` from its target, and nobody within
+    ``people_distance`` moves faster than ``people_speed``, the robot drives
+    a route for its whole outline (control/route.py: back off, turn, come
+    at the door straight) with its arm held, until the rest of the route is
+    a drive ahead; then the MPC takes over again. Standing people are kept
+    ``clearance`` away like walls; anyone moving near ends it, as do
+    ``max_time`` seconds and a step the barriers would refuse."""
+
+    enabled: bool = False
+    stall_time: float = 3.0
+    stall_distance: float = 0.05
+    goal_tolerance: float = 0.3
+    people_distance: float = 1.5
+    people_speed: float = 0.25
+    # Kept from walls and standing people, on top of safety.obstacle_margin (m).
+    clearance: float = 0.02
+    max_time: float = 20.0
+    # Speeds while driving the route (fractions of the robot's limits).
+    speed_fraction: float = 0.5
 
 
 @dataclass
@@ -139,6 +165,7 @@ class ControllerConfig:
     # states after each ORCA-KKT solve and log the action errors (costs a few
     # ms per human; not counted in the step time).
     check_predictions: bool = False
+    recovery: RecoveryConfig = field(default_factory=RecoveryConfig)
 
 
 HUMAN_BEHAVIORS = (
@@ -368,48 +395,6 @@ class PhaseConfig:
     done_when: list[str] = field(default_factory=list)
     tolerance: float = 0.05
     hold_time: float = 0.5
-
-
-@dataclass
-class HardwareConfig:
-    """The hardware path over LCM (``sm2ith hardware`` and ``sm2ith driver``):
-    channels, timeouts and what happens when inputs go stale."""
-
-    # Drake's LCM parameters. The default URL is multicast that never leaves
-    # the host (ttl=0).
-    lcm: DrakeLcmParams = field(
-        default_factory=lambda: DrakeLcmParams(
-            lcm_url="udpm://239.255.76.67:7667?ttl=0"
-        )
-    )
-    state_channel: str = "SM2ITH_ROBOT_STATE"
-    command_channel: str = "SM2ITH_ROBOT_COMMAND"
-    detections_channel: str = "SM2ITH_HUMAN_DETECTIONS"
-    plan_channel: str = "SM2ITH_PLAN"
-    # Robot state older than this (s, since it was received) or missing:
-    # stop commands. 0: two control periods.
-    state_timeout: float = 0.0
-    # Human detections older than this (s): the estimator only predicts and
-    # the velocity command is scaled by stale_detection_speed_scale; older
-    # than detection_stop_timeout (0: perception.track_timeout, when the
-    # tracks are dropped): stop commands.
-    detection_timeout: float = 0.25
-    stale_detection_speed_scale: float = 0.3
-    detection_stop_timeout: float = 0.0
-    # Listen to motion capture and predict people (whatever ``humans``
-    # lists: on hardware they are only what the driver simulates).
-    with_people: bool = True
-    # Detection ids accepted (empty: any id ≥ 0); others are dropped and
-    # counted.
-    human_ids: list[int] = field(default_factory=list)
-    # How often incoming messages are polled and validated (s).
-    poll_period: float = 0.005
-    # Publish the plan for telemetry on plan_channel.
-    publish_plan: bool = True
-    # The driver: state publication period (s), and the watchdog that brakes
-    # the robot when no command arrives for this long (s).
-    driver_state_period: float = 0.01
-    driver_command_timeout: float = 0.5
 
 
 @dataclass

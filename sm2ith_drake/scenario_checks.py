@@ -173,6 +173,16 @@ def _ValidateController(scenario: Scenario) -> None:
         "effort_weight_u",
     ):
         _NonNegative(getattr(c, name), f"controller.{name}")
+    r = c.recovery
+    for name in ("stall_time", "stall_distance", "max_time", "people_distance"):
+        _Positive(getattr(r, name), f"controller.recovery.{name}")
+    for name in ("goal_tolerance", "people_speed", "clearance"):
+        _NonNegative(getattr(r, name), f"controller.recovery.{name}")
+    if not 0.0 < r.speed_fraction <= 1.0:
+        raise ScenarioError(
+            "controller.recovery.speed_fraction must be in (0, 1], "
+            f"got {r.speed_fraction}"
+        )
 
 
 def _ValidateGates(scenario: Scenario, i: int, h: HumanConfig) -> None:

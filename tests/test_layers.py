@@ -18,7 +18,10 @@ PACKAGE = Path(__file__).resolve().parents[1] / "sm2ith_drake"
 LAYERS = [
     ("base", ["", "errors", "resources", "geometry"]),  # "" = the package
     ("robots", ["robots"]),
-    ("scenario", ["scenario", "scenario_checks", "scenario_loader"]),
+    (
+        "scenario",
+        ["scenario", "scenario_hardware", "scenario_checks", "scenario_loader"],
+    ),
     ("humans", ["humans"]),  # world models and the messages
     ("control", ["control"]),  # the math of the controller
     ("planning", ["planning"]),  # task sequences

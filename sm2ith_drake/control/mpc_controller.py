@@ -10,6 +10,7 @@ Every fallback is counted.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import time
 from dataclasses import dataclass, field
 
@@ -22,6 +23,7 @@ from sm2ith_drake.control.prediction.orca_kkt import PredictionConsistency
 from sm2ith_drake.control.prediction.predict import HumanPredictorModel
 from sm2ith_drake.control.profiling import PROFILER
 from sm2ith_drake.control.program import MpcProgram
+from sm2ith_drake.control.recovery import Recovery, RecoveryState
 from sm2ith_drake.control.robot_groups import ModelStep
 from sm2ith_drake.control.tasks import MakeTask
 from sm2ith_drake.humans.messages import HumanPrediction, MpcPlan
@@ -44,6 +46,8 @@ class ControllerCounters:
     # Shifted-plan replays refused because they would close in on a person
     # faster than the DT-CBF allows (the robot brakes instead).
     unsafe_replays: int = 0
+    # Steps driven by the recovery instead of the MPC (ControllerConfig.recovery).
+    recovery_steps: int = 0
 
 
 @dataclass
@@ -56,7 +60,7 @@ class StepRecord:
     iterations: int = 0
     passes: int = 0  # RTI passes run (see HierarchicalSolver.Solve)
     success: bool = True
-    mode: str = "none"  # "solved" | "shifted_plan" | "brake"
+    mode: str = "none"  # "solved" | "shifted_plan" | "brake" | "recovery"
     status: str = ""
     # With ControllerConfig.check_predictions and the ORCA-KKT predictor:
     # ‖a_QP − a_predicted‖ of every active human and prediction step, from
@@ -79,6 +83,7 @@ class ControllerState:
     command_nu: np.ndarray | None = None
     counters: ControllerCounters = field(default_factory=ControllerCounters)
     record: StepRecord = field(default_factory=StepRecord)
+    recovery: RecoveryState = field(default_factory=RecoveryState)
 
 
 def WarmStartInputs(plan, plan_age: int, shift: int, horizon: int, num_velocities: int):
@@ -184,6 +189,14 @@ class MpcController:
         self.safety = safety or SafetyConfig()
         self.period = ControlPeriod(config)
         self.shift = max(1, int(round(self.period / config.time_step)))
+        self.recovery = Recovery(
+            robot,
+            self.tasks,
+            config.recovery,
+            walls=segments,
+            safety=self.safety,
+            period=self.period,
+        )
 
     def EmptyPrediction(self) -> HumanPrediction:
         """The prediction with nobody tracked."""
@@ -250,6 +263,12 @@ class MpcController:
             self.predictor.SetPrediction(prediction)
             humans = prediction.estimate
             start -= prediction.compute_time
+        u = self._Recover(new, state, time_now, q0, nu0, targets, humans)
+        if u is not None:
+            record.mode = record.status = "recovery"
+            new.plan, new.plan_age, new.last_solution = None, 0, None
+            new.counters.recovery_steps += 1
+            return self._Command(new, record, u, nu0, start)
         if np.all(np.isfinite(q0)) and np.all(np.isfinite(nu0)):
             try:
                 solution = self.solver.Solve(
@@ -297,14 +316,7 @@ class MpcController:
                 new.counters.braking_fallbacks += 1
                 record.mode = "brake"
         record.success = ok
-        nu_now = np.nan_to_num(nu0)
-        new.command_u = np.asarray(u, dtype=float)
-        new.command_nu = np.clip(
-            nu_now + self.period * new.command_u,
-            self.robot.nu_lower,
-            self.robot.nu_upper,
-        )
-        record.wall_time = time.perf_counter() - start
+        new = self._Command(new, record, u, nu0, start)
         if (
             ok
             and self.config.check_predictions
@@ -314,8 +326,55 @@ class MpcController:
             record.prediction_errors = PredictionConsistency(
                 self.predictor, solution.z, self.program.layout
             ).ravel()
+        return new
+
+    def _Command(self, new: ControllerState, record, u, nu0, start) -> ControllerState:
+        """Finishes a step: the command from the input u, and the record."""
+        new.command_u = np.asarray(u, dtype=float)
+        new.command_nu = np.clip(
+            np.nan_to_num(nu0) + self.period * new.command_u,
+            self.robot.nu_lower,
+            self.robot.nu_upper,
+        )
+        record.wall_time = time.perf_counter() - start
         new.record = record
         return new
+
+    def _Recover(self, new, state, time_now, q0, nu0, targets, humans):
+        """The input u of a step that the recovery drives (its state updated
+        in ``new``), or None for the MPC to plan. The base velocity it asks
+        for is reached as fast as the acceleration limits allow, the arm
+        held; a step that would close in on a person or a wall faster than
+        the DT-CBF allows ends the recovery instead."""
+        if not (np.all(np.isfinite(q0)) and np.all(np.isfinite(nu0))):
+            return None
+        new.recovery, nu_base = self.recovery.Step(
+            state.recovery, time_now=time_now, q0=q0, targets=targets, humans=humans
+        )
+        if nu_base is None:
+            return None
+        nu_want = np.zeros(self.robot.num_velocities)
+        nu_want[: len(nu_base)] = nu_base
+        u = np.clip(
+            (nu_want - nu0) / self.period,
+            self.robot.nudot_lower,
+            self.robot.nudot_upper,
+        )
+        q1, _ = ModelStep(self.robot, q0, nu0, u, self.period)
+        # The DT-CBF of the walls, except that within the obstacle margin the
+        # route may run on at half of it (it was planned with a distance
+        # field that errs by a few cm, toward caution).
+        h0, h1 = self.recovery.WallBarrier(q0), self.recovery.WallBarrier(q1)
+        floor = -0.5 * self.safety.obstacle_margin
+        walls_ok = h1 >= min((1.0 - self.safety.gamma) * h0, floor)
+        if walls_ok and self.ReplayIsSafe(q0, nu0, u, humans):
+            return u
+        new.recovery = dataclasses.replace(
+            new.recovery,
+            route=None,
+            status="recovery ended: the barriers refused a step",
+        )
+        return None
 
     def ReplayIsSafe(self, q0, nu0, u, humans) -> bool:
         """Whether replaying ``u`` for one control period keeps the DT-CBF
