@@ -87,7 +87,7 @@ class RecoveryState:
 
 def Segments(route: Route) -> tuple[np.ndarray, np.ndarray]:
     """A route's runs of one kind of move: kinds (G,) and end poses (G, 3)."""
-    moves = route.moves[1:]
+    moves = route.moves  # the move into each of poses[1:]
     poses = route.poses[1:]
     if not len(moves):
         return np.zeros(0, dtype=int), np.zeros((0, 3))

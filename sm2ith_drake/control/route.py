@@ -276,8 +276,12 @@ def PlanRoute(
     path = np.array(path[::-1])
     k, i, j = np.unravel_index(path, node.shape)
     poses = np.column_stack([origin[0] + h * i, origin[1] + h * j, HEADINGS[k]])
-    # Headings continuous along the route, starting from the start's.
-    poses = np.vstack([start, poses])
+    # From the start itself (a turn onto the lattice's heading, if it is
+    # not on one), headings continuous along the route.
+    if abs(_Wrap(poses[0, 2] - start[2])) > 1e-9:
+        poses = np.vstack([start, poses])
+    else:
+        poses[0] = start
     poses[:, 2] = start[2] + np.concatenate(
         [[0.0], np.cumsum(_Wrap(np.diff(poses[:, 2])))]
     )
