@@ -76,8 +76,9 @@ class TaskConfig:
 @dataclass
 class RecoveryConfig:
     """The way out of a stall (control/recovery.py, not in the paper): when
-    the base has moved less than ``stall_distance`` in ``stall_time`` more
-    than ``goal_tolerance`` from its target, and nobody within
+    the base has come less than ``stall_distance`` nearer its target in
+    ``stall_time`` (standing, or edging back and forth), more than
+    ``goal_tolerance`` from it, and nobody within
     ``people_distance`` moves faster than ``people_speed``, the robot drives
     a route for its whole outline (control/route.py: back off, turn, come
     at the door straight) with its arm held, until the rest of the route is

@@ -173,3 +173,25 @@ def test_bad_recovery_settings_get_clear_errors(text, message):
         LoadScenario(
             filename=DOORWAY, scenario_name="doorway_stretch3", scenario_text=text
         )
+
+
+def test_edging_back_and_forth_is_a_stall_slow_progress_is_not():
+    """A base that sways 8 cm to and fro beside the door, coming no nearer
+    its target, gets a route after stall_time; one that creeps 2 cm/s
+    toward the target never does."""
+    controller = _Controller()
+    recovery = controller.recovery
+    targets = {t.name: t.target for t in controller.tasks}
+    for sway, expected in ((True, 1), (False, 0)):
+        state = controller.InitialState()
+        for k in range(int(round(6.0 / controller.period))):
+            t = k * controller.period
+            q = np.array(CORNER)
+            if sway:
+                q[0] += 0.04 * np.sin(2.0 * t)
+            else:
+                q[:2] += 0.02 * t * (np.array([0.0, 1.5]) - q[:2]) / 1.8
+            state.recovery, _ = recovery.Step(
+                state.recovery, time_now=t, q0=q, targets=targets, humans=None
+            )
+        assert state.recovery.routes == expected

@@ -8,8 +8,9 @@ and at a standstill a turn in place does not move the base origin to first
 order, so the linearization sees no use in turning. It then stands there
 with every solve "solved".
 
-Recovery watches for that: the base has moved less than ``stall_distance``
-in ``stall_time``, short of its target, and nobody near is moving. It then
+Recovery watches for that: in ``stall_time`` the base has come less than
+``stall_distance`` nearer its target (standing, or edging back and forth),
+short of it, and nobody near is moving. It then
 plans a route for the robot's whole outline (control/route.py), the arm
 held as it is, standing people kept off like walls, and drives it in place
 of the MPC: a turn, a step back, a step ahead at a time. It hands back to
@@ -191,10 +192,13 @@ class Recovery:
             new.route, new.status = None, f"recovery ended: {end}"
             new.history = new.history[-1:]
             return new, None
+        # No progress: in the last stall_time the base never came
+        # stall_distance nearer the target than it was at the start (a base
+        # that stands, or edges back and forth).
+        distance = np.linalg.norm(new.history[:, 1:] - target, axis=1)
         stalled = (
             new.history[0, 0] <= time_now - cfg.stall_time + 1e-9
-            and np.max(np.linalg.norm(new.history[:, 1:] - q0[:2], axis=1))
-            < cfg.stall_distance
+            and distance[0] - np.min(distance) < cfg.stall_distance
         )
         if not stalled or someone_moving:
             return new, None
