@@ -139,6 +139,7 @@ def SummarizeRun(log, robot, human_radii=None) -> dict:
         out["solver_failures"] = c.solver_failures
         out["fallbacks"] = c.fallbacks
         out["braking_fallbacks"] = c.braking_fallbacks
+        out["recovery_steps"] = c.recovery_steps
     if human_radii is not None:
         out.update(HumanMetrics(log, robot, human_radii))
     errors = [
@@ -316,6 +317,7 @@ _SUMMARY_COLUMNS = (
     "solver_failures",
     "fallbacks",
     "braking_fallbacks",
+    "recovery_steps",
     "prediction_consistency",
 )
 
