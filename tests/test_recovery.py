@@ -195,3 +195,24 @@ def test_edging_back_and_forth_is_a_stall_slow_progress_is_not():
                 state.recovery, time_now=t, q0=q, targets=targets, humans=None
             )
         assert state.recovery.routes == expected
+
+
+def test_a_base_task_below_another_task_is_never_recovered():
+    """With the EE task first, a base short of its target may be held there
+    by the hierarchy: the recovery stays off."""
+    text = (
+        ", tasks: [{kind: ee_position_in_base, target: [-0.11, -0.46, 0.64]},"
+        " {kind: base_position, target: [0.0, 1.5]}]"
+    )
+    scenario = _Scenario(enabled=True, extra=text)
+    robot = MobileManipulator("stretch3")
+    controller = MpcController(
+        robot,
+        scenario.tasks,
+        scenario.controller,
+        prediction=scenario.prediction,
+        safety=scenario.safety,
+        obstacles=scenario.obstacles,
+    )
+    state, records = _StepUntil(controller, CORNER, None, 5.0)
+    assert state.recovery.routes == 0 and all(b is None for b, _ in records)

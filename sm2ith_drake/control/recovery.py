@@ -10,7 +10,9 @@ with every solve "solved".
 
 Recovery watches for that: in ``stall_time`` the base has come less than
 ``stall_distance`` nearer its target (standing, or edging back and forth),
-short of it, and nobody near is moving. It then
+short of it, and nobody near is moving. Only a base task of the first
+priority is recovered (below another task a base that stays put may be
+what the hierarchy asks for). It then
 plans a route for the robot's whole outline (control/route.py), the arm
 held as it is, standing people kept off like walls, and drives it in place
 of the MPC: a turn, a step back, a step ahead at a time. It hands back to
@@ -127,15 +129,14 @@ class Recovery:
         self.walls = np.asarray(walls, dtype=float).reshape(-1, 2, 2)
         self.safety = safety
         self.period = float(period)
-        self._base = next(
-            (
-                t.name
-                for t in tasks
-                if isinstance(t, BasePose)
-                or (isinstance(t, BasePosition) and not t.offset)
-            ),
-            None,
+        # Only a base task of the first priority is recovered: under a higher
+        # task (an EE held in place, say) a base that stays put may be what
+        # the hierarchy asks for, and the route, arm held, would break it.
+        first = tasks[0] if len(tasks) else None
+        base = isinstance(first, BasePose) or (
+            isinstance(first, BasePosition) and not first.offset
         )
+        self._base = first.name if base else None
         self._holonomic = NumBaseVelocities(robot) == 3
 
     def InitialState(self) -> RecoveryState:
