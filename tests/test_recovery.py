@@ -96,8 +96,8 @@ def test_a_cloned_context_reproduces_a_run_through_a_recovery():
     np.testing.assert_array_equal(np.array(a.states), np.array(b.states))
 
 
-def _Controller(enabled=True):
-    scenario = _Scenario(enabled=enabled)
+def _Controller(enabled=True, scenario=None):
+    scenario = scenario or _Scenario(enabled=enabled)
     robot = MobileManipulator("stretch3")
     robot.NarrowJointLimits(scenario.robot.joint_limits)
     return MpcController(
@@ -204,15 +204,6 @@ def test_a_base_task_below_another_task_is_never_recovered():
         ", tasks: [{kind: ee_position_in_base, target: [-0.11, -0.46, 0.64]},"
         " {kind: base_position, target: [0.0, 1.5]}]"
     )
-    scenario = _Scenario(enabled=True, extra=text)
-    robot = MobileManipulator("stretch3")
-    controller = MpcController(
-        robot,
-        scenario.tasks,
-        scenario.controller,
-        prediction=scenario.prediction,
-        safety=scenario.safety,
-        obstacles=scenario.obstacles,
-    )
+    controller = _Controller(scenario=_Scenario(enabled=True, extra=text))
     state, records = _StepUntil(controller, CORNER, None, 5.0)
     assert state.recovery.routes == 0 and all(b is None for b, _ in records)

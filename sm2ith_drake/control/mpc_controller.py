@@ -361,9 +361,9 @@ class MpcController:
             self.robot.nudot_upper,
         )
         q1, _ = ModelStep(self.robot, q0, nu0, u, self.period)
-        # The DT-CBF of the walls, except that within the obstacle margin the
-        # route may run on at half of it (it was planned with a distance
-        # field that errs by a few cm, toward caution).
+        # The walls: the DT-CBF holds, or the step keeps at least half the
+        # obstacle margin (a route may run within the margin: it was planned
+        # in a distance field that errs by a few cm, toward caution).
         h0, h1 = self.recovery.WallBarrier(q0), self.recovery.WallBarrier(q1)
         floor = -0.5 * self.safety.obstacle_margin
         walls_ok = h1 >= min((1.0 - self.safety.gamma) * h0, floor)

@@ -42,7 +42,7 @@ from sm2ith_drake.control.route import (
     PlanRoute,
     Route,
 )
-from sm2ith_drake.control.tasks import BasePose, BasePosition
+from sm2ith_drake.control.tasks import BasePose, BasePosition, WrapAngle
 from sm2ith_drake.robots.planar_base import NUM_BASE_POSITIONS, NumBaseVelocities
 
 # The route is handed back to the MPC once the rest of it is a drive ahead
@@ -81,10 +81,10 @@ class RecoveryState:
     retreat: bool = False
     # Base positions (t, x, y), one every TRAIL_STEP over TRAIL_TIME.
     trail: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
-    # Counters: routes driven; stalls with no route; steps driven.
+    # Counters: routes driven; stalls with no route (the steps driven are
+    # ControllerCounters.recovery_steps).
     routes: int = 0
     no_route: int = 0
-    steps: int = 0
     status: str = ""
 
 
@@ -116,7 +116,7 @@ def DrivesAhead(kinds, ends, heading: float) -> bool:
     EXIT_ANGLE of ``heading``."""
     if np.any((kinds == BACKWARD) | (kinds == SIDEWAYS)):
         return False
-    return bool(np.all(np.abs(_Wrap(ends[:, 2] - heading)) <= EXIT_ANGLE))
+    return bool(np.all(np.abs(WrapAngle(ends[:, 2] - heading)) <= EXIT_ANGLE))
 
 
 class Recovery:
@@ -187,7 +187,6 @@ class Recovery:
             if end is None:
                 nu = self._Follow(new, q0)
                 if nu is not None:
-                    new.steps += 1
                     return new, nu
                 end = "route driven"
             new.route, new.status = None, f"recovery ended: {end}"
@@ -229,8 +228,6 @@ class Recovery:
         nu = self._Follow(new, q0)
         if nu is None:
             new.route = None
-            return new, None
-        new.steps += 1
         return new, nu
 
     def _Route(self, new, q0, goal, discs, tolerance=None):
@@ -275,7 +272,7 @@ class Recovery:
         c, s = np.cos(theta), np.sin(theta)
         e = goal[:2] - (x, y)
         ahead, aside = c * e[0] + s * e[1], -s * e[0] + c * e[1]
-        turn = _Wrap(goal[2] - theta)
+        turn = WrapAngle(goal[2] - theta)
         lower = self.robot.nu_lower[: NumBaseVelocities(self.robot)]
         upper = self.robot.nu_upper[: NumBaseVelocities(self.robot)]
         fraction = self.config.speed_fraction
@@ -316,7 +313,3 @@ def _People(humans):
     v = np.nan_to_num(np.asarray(humans.velocities, dtype=float).reshape(-1, 2))
     ok = np.all(np.isfinite(p), axis=1)
     return p[ok], v[ok]
-
-
-def _Wrap(angle):
-    return (np.asarray(angle) + np.pi) % (2 * np.pi) - np.pi

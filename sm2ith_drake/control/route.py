@@ -32,7 +32,8 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from sm2ith_drake.geometry import point_segment_distance_2d
+from sm2ith_drake.control.tasks import WrapAngle
+from sm2ith_drake.geometry import point_segment_distance_2d, segment_closest_points
 
 # The lattice's headings are the directions of these grid steps (lengths 1,
 # √2 and √5 cells). Step k + 4 is step k turned by 90°.
@@ -94,24 +95,14 @@ class Route:
 
 def _SegmentDistances(A, B, C, D):
     """Distances between segments A–B and C–D in the plane (broadcast
-    arrays (..., 2)): 0 if they cross, else the least of the four
-    endpoint-to-segment distances."""
-    d = np.minimum(
-        np.minimum(
-            point_segment_distance_2d(C, D, A)[0], point_segment_distance_2d(C, D, B)[0]
-        ),
-        np.minimum(
-            point_segment_distance_2d(A, B, C)[0], point_segment_distance_2d(A, B, D)[0]
-        ),
-    )
+    arrays (..., 2)), by geometry's closest points (lifted to the floor)."""
 
-    def Side(P, Q, R):
-        return (Q[..., 0] - P[..., 0]) * (R[..., 1] - P[..., 1]) - (
-            Q[..., 1] - P[..., 1]
-        ) * (R[..., 0] - P[..., 0])
+    def Lift(x):
+        x = np.broadcast_to(x, np.broadcast_shapes(A.shape, C.shape))
+        return np.concatenate([x, np.zeros(x.shape[:-1] + (1,))], axis=-1)
 
-    crossing = (Side(A, B, C) * Side(A, B, D) < 0) & (Side(C, D, A) * Side(C, D, B) < 0)
-    return np.where(crossing, 0.0, d)
+    _, _, c1, c2 = segment_closest_points(Lift(A), Lift(B), Lift(C), Lift(D))
+    return np.linalg.norm(c1 - c2, axis=-1)
 
 
 def FootprintClearance(footprint: Footprint, poses, walls, discs=None) -> np.ndarray:
@@ -215,7 +206,7 @@ def PlanRoute(
     # The turn k → k + 1, at its middle.
     turned = np.stack(
         [
-            Clearance(0.0, a + 0.5 * _Wrap(HEADINGS[(k + 1) % NUM_HEADINGS] - a))
+            Clearance(0.0, a + 0.5 * WrapAngle(HEADINGS[(k + 1) % NUM_HEADINGS] - a))
             >= need
             for k, a in enumerate(HEADINGS)
         ]
@@ -251,7 +242,7 @@ def PlanRoute(
                 side = sign * lateral[k]
                 Add(k, side, length, Clearance(0.5 * h * side, a) >= need)
         k1 = (k + 1) % NUM_HEADINGS
-        angle = abs(_Wrap(HEADINGS[k1] - a))
+        angle = abs(WrapAngle(HEADINGS[k1] - a))
         ok = free[k] & free[k1] & turned[k]
         for s_, d_ in ((node[k], node[k1]), (node[k1], node[k])):
             src.append(s_[ok])
@@ -278,19 +269,19 @@ def PlanRoute(
     poses = np.column_stack([origin[0] + h * i, origin[1] + h * j, HEADINGS[k]])
     # From the start itself (a turn onto the lattice's heading, if it is
     # not on one), headings continuous along the route.
-    if abs(_Wrap(poses[0, 2] - start[2])) > 1e-9:
+    if abs(WrapAngle(poses[0, 2] - start[2])) > 1e-9:
         poses = np.vstack([start, poses])
     else:
         poses[0] = start
     poses[:, 2] = start[2] + np.concatenate(
-        [[0.0], np.cumsum(_Wrap(np.diff(poses[:, 2])))]
+        [[0.0], np.cumsum(WrapAngle(np.diff(poses[:, 2])))]
     )
     return Route(poses=poses, moves=_Moves(poses), cost=float(dist[last]))
 
 
 def _Nearest(angle) -> int:
     """The lattice heading nearest ``angle``."""
-    return int(np.argmin(np.abs(_Wrap(HEADINGS - angle))))
+    return int(np.argmin(np.abs(WrapAngle(HEADINGS - angle))))
 
 
 def _Samples(footprint: Footprint, spacing: float):
@@ -331,10 +322,6 @@ def _DistanceField(walls, lo, hi):
         return table[i, j]
 
     return Field
-
-
-def _Wrap(angle):
-    return (np.asarray(angle) + np.pi) % (2 * np.pi) - np.pi
 
 
 def _Moves(poses):
