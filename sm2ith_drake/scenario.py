@@ -150,6 +150,13 @@ class ControllerConfig:
     # steps where the linearization holds (near arm singularities, at the
     # reach limit) and vanishes at a converged plan (rti only).
     rti_proximal_weight: float = 1.0
+    # Whether the damping also holds the multipliers of the people's ORCA
+    # QPs (SM²ITH): forces the KKT rows settle from the plan, ~1e2 in size,
+    # damped like positions. Off, a traced doorway plan stopped closing in
+    # on a person inside its margin, and SM²ITH reached the goal more often
+    # with ORCA people and less often with instructed people (README,
+    # Doorway): on, as before.
+    rti_proximal_multipliers: bool = True
     # Slack added to |e*| in the lexicographic constraints (eq. stmpc_lex_constr).
     lexicographic_tolerance: float = 1e-3
     # J_eff = ½ Σ w_ν‖ν_k‖² + w_u‖u_k‖².

@@ -349,3 +349,54 @@ def test_safety_variants_are_one_controller_without_interactive_prediction(
     np.testing.assert_array_equal(
         np.asarray(runs[0].log.states), np.asarray(runs[1].log.states)
     )
+
+
+@pytest.mark.parametrize("damp_multipliers", [False, True])
+def test_proximal_term_damps_the_orca_multipliers_only_if_asked(
+    damp_multipliers, monkeypatch
+):
+    """The RTI's proximal term ½ρ‖z − z̄‖² damps the plan (the robot's
+    variables, the people's positions and actions) and, with
+    rti_proximal_multipliers (the default), the multipliers of the people's
+    relaxed-ORCA QPs: on the QPs PIQP is given, their Hessian diagonal holds
+    ρ, and nothing without it (they have no cost of their own)."""
+    from sm2ith_drake.control.piqp_workspace import PiqpWorkspace
+
+    rho = 0.5
+    scenario = LoadScenario(
+        filename=GetDiagramsDir() / "crossing.scenarios.yaml",
+        scenario_name="crossing_ridgeback_ur10_1h",
+        scenario_text=f"{{controller: {{rti_proximal_weight: {rho}, "
+        f"rti_proximal_multipliers: {str(damp_multipliers).lower()}}}}}",
+    )
+    diagonals = []
+    solve = PiqpWorkspace.Solve
+
+    def Recording(self, p_values, q, *args):
+        rows, cols = self.p_pattern
+        diagonal = np.zeros(self.n)
+        on = rows == cols
+        diagonal[rows[on]] = p_values[on]
+        diagonals.append(diagonal)
+        return solve(self, p_values, q, *args)
+
+    monkeypatch.setattr(PiqpWorkspace, "Solve", Recording)
+    result = RunSimulation(scenario, duration=0.4)
+    assert result.log.records[-1].mode == "solved"
+    controller_program = MpcController(
+        MakeRobot(scenario),
+        scenario.tasks,
+        scenario.controller,
+        prediction=scenario.prediction,
+        safety=scenario.safety,
+    ).program
+    lam = controller_program.predictor.lam.ravel()
+    q = controller_program.layout.q[1:].ravel()
+    effort = controller_program.effort_diagonal
+    assert diagonals and lam.size
+    for diagonal in diagonals:
+        # The multipliers carry no cost of their own: ρ or nothing.
+        expected = rho if damp_multipliers else 0.0
+        np.testing.assert_allclose(diagonal[lam], expected, atol=1e-12)
+        # The robot's configurations: ρ on top of any task curvature.
+        assert np.all(diagonal[q] >= effort[q] + rho - 1e-12)

@@ -71,7 +71,7 @@ class HierarchicalSolver:
         solver_options=None,
         lexicographic_tolerance: float = 1e-3,
         rti_iterations: int = 1,
-        rti_proximal_weight: float = 1.0,
+        rti_proximal_weight: float | np.ndarray = 1.0,
         rti_prediction_tolerance: float = 0.0,
         rti_constraint_tolerance: float = 0.0,
         rti_early_pass_check: bool = False,

@@ -181,7 +181,8 @@ class MpcController:
             solver_options=config.solver_options,
             lexicographic_tolerance=config.lexicographic_tolerance,
             rti_iterations=config.rti_iterations,
-            rti_proximal_weight=config.rti_proximal_weight,
+            rti_proximal_weight=config.rti_proximal_weight
+            * self.program.ProximalMask(config.rti_proximal_multipliers),
             rti_prediction_tolerance=config.rti_prediction_tolerance,
             rti_constraint_tolerance=config.rti_constraint_tolerance,
             rti_early_pass_check=config.rti_early_pass_check,

@@ -183,6 +183,15 @@ class MpcProgram:
         # the QP is infeasible without them.
         self.braking_consistent_bounds = True
 
+    def ProximalMask(self, multipliers: bool) -> np.ndarray:
+        """1 for every variable the RTI's proximal term damps, 0 for the
+        predictor's multipliers unless ``multipliers`` (ControllerConfig.
+        rti_proximal_multipliers)."""
+        mask = np.ones(self.layout.num_variables)
+        if not multipliers and self.predictor is not None:
+            mask[self.predictor.MultiplierVariables()] = 0.0
+        return mask
+
     def PatternKey(self) -> bytes:
         """Identifies the groups' current Jacobian sparsity patterns (they
         change only with the predictor's neighbour sets)."""

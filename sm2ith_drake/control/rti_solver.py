@@ -48,7 +48,7 @@ class RtiStageSolver:
         program: MpcProgram,
         stage: Stage,
         qp_options: dict,
-        proximal_weight: float = 1.0,
+        proximal_weight: float | np.ndarray = 1.0,
     ):
         self.program = program
         self.stage = stage
@@ -171,7 +171,8 @@ class RtiStageSolver:
             hessian, gradient = TaskCostGaussNewton(J, w, c)
             P_cost += hessian
             q_cost += gradient
-        # J_eff and the proximal term ½ρ‖z − z̄‖².
+        # J_eff and the proximal term ½ Σ ρ_i (z_i − z̄_i)² (ρ per variable:
+        # MpcProgram.ProximalMask).
         rho = self.proximal_weight
         p_values = np.zeros(self._p_diag.size)
         p_values[self._p_in_cost] = P_cost[

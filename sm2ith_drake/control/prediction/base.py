@@ -100,6 +100,11 @@ class Predictor:
         before another SQP pass linearizes at z (in place). The fixed
         predictions of React and CVMM are already."""
 
+    def MultiplierVariables(self) -> np.ndarray:
+        """Indices of the predictor's dual variables (none for React and
+        CVMM)."""
+        return np.zeros(0, dtype=int)
+
     def Predictions(self, z: np.ndarray) -> np.ndarray:
         return z[self.p].copy()
 

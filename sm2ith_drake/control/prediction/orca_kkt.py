@@ -119,6 +119,10 @@ class OrcaKkt(Predictor):
         self.a = layout.AddVariables("human_a", (N, H, 2))
         self.lam = layout.AddVariables("human_lambda", (N, H, self.num_multipliers))
 
+    def MultiplierVariables(self):
+        """The multipliers λ of every person's relaxed-ORCA QP."""
+        return self.lam.ravel()
+
     def ConstraintGroups(self, program):
         self._blocks = KktBlocks(self, program.layout)
         self._equality = KktEqualities(self, self._blocks)
