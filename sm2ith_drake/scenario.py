@@ -151,11 +151,8 @@ class ControllerConfig:
     # reach limit) and vanishes at a converged plan (rti only).
     rti_proximal_weight: float = 1.0
     # Whether the damping also holds the multipliers of the people's ORCA
-    # QPs (SM²ITH): forces the KKT rows settle from the plan, ~1e2 in size,
-    # damped like positions. Off, a traced doorway plan stopped closing in
-    # on a person inside its margin, and SM²ITH reached the goal more often
-    # with ORCA people and less often with instructed people (README,
-    # Doorway): on, as before.
+    # QPs (SM²ITH): forces of ~1e2 the KKT rows settle from the plan. Off:
+    # measured in the doorway, not the default (README, Doorway).
     rti_proximal_multipliers: bool = True
     # Slack added to |e*| in the lexicographic constraints (eq. stmpc_lex_constr).
     lexicographic_tolerance: float = 1e-3
@@ -360,6 +357,10 @@ class SafetyConfig:
     # prediction only (guard_steps and static_guard_steps ignored). Studies
     # run both variants.
     mode: str = "safe"
+    # Exact-penalty weights (per metre) of the barrier rows' slacks against
+    # people and walls; walls must outrank people (README, Doorway).
+    human_slack_weight: float = 1e4
+    obstacle_slack_weight: float = 1e6
 
 
 @dataclass

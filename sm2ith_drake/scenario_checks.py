@@ -279,6 +279,12 @@ def _ValidatePeople(scenario: Scenario) -> None:
     _NonNegative(s.guard_hold, "safety.guard_hold")
     _NonNegative(s.guard_gap, "safety.guard_gap")
     _NonNegative(s.human_margin, "safety.human_margin")
+    _Positive(s.human_slack_weight, "safety.human_slack_weight")
+    if not s.obstacle_slack_weight > s.human_slack_weight:
+        raise ScenarioError(
+            "safety.obstacle_slack_weight must exceed safety.human_slack_weight "
+            f"(a wall outranks a person's margin), got {s.obstacle_slack_weight}"
+        )
     _NonNegative(s.obstacle_margin, "safety.obstacle_margin")
     _Positive(s.human_radius, "safety.human_radius")
     pc = scenario.perception

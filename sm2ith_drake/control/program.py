@@ -48,15 +48,14 @@ from sm2ith_drake.robots.planar_base import NUM_BASE_POSITIONS, ArmVelocityIndex
 from sm2ith_drake.scenario import SafetyConfig
 
 # Exact-penalty weights of constraint slacks (large against task costs of
-# order 1 per metre of error).
+# order 1 per metre of error). The barrier's are SafetyConfig's
+# human_slack_weight and obstacle_slack_weight: a wall outranks a person's
+# margin, so where a person crowds the robot against a wall the plan gives
+# up the person's margin (0.1 m, still clear of them) before it enters the
+# wall (measured in the doorway: with one weight for both a plan put a
+# capsule 16 cm into the door jamb).
 SLACK_LINEAR_WEIGHT = 1e3
 SLACK_QUADRATIC_WEIGHT = 1e4
-CBF_SLACK_LINEAR_WEIGHT = 1e4
-# A wall outranks a person's margin: where a person crowds the robot against
-# a wall, the plan gives up the person's margin (0.1 m, still clear of
-# them) before it enters the wall (measured in the doorway: with one weight
-# for both a plan put a capsule 16 cm into the door jamb).
-WALL_SLACK_LINEAR_WEIGHT = 1e6
 
 
 class MpcProgram:
@@ -172,9 +171,9 @@ class MpcProgram:
         lower[self.self_collision.slack.ravel()] = 0.0
         if self.cbf is not None:
             self.effort_diagonal[self.cbf.slack] = SLACK_QUADRATIC_WEIGHT
-            self.linear_cost[self.cbf.slack] = CBF_SLACK_LINEAR_WEIGHT
+            self.linear_cost[self.cbf.slack] = safety.human_slack_weight
             walls = self.cbf.slack[self.cbf.obstacle_rows]
-            self.linear_cost[walls] = WALL_SLACK_LINEAR_WEIGHT
+            self.linear_cost[walls] = safety.obstacle_slack_weight
             lower[self.cbf.slack] = 0.0
         self.variable_lower = lower
         self.variable_upper = upper
