@@ -283,7 +283,8 @@ def _ValidatePeople(scenario: Scenario) -> None:
     if not s.obstacle_slack_weight > s.human_slack_weight:
         raise ScenarioError(
             "safety.obstacle_slack_weight must exceed safety.human_slack_weight "
-            f"(a wall outranks a person's margin), got {s.obstacle_slack_weight}"
+            f"(a wall outranks a person's margin), got {s.obstacle_slack_weight} "
+            f"against {s.human_slack_weight}"
         )
     _NonNegative(s.obstacle_margin, "safety.obstacle_margin")
     _Positive(s.human_radius, "safety.human_radius")
