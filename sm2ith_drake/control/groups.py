@@ -14,6 +14,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+# Roles of decision variables (VariableLayout.AddVariables).
+OTHER, STATE, INPUT = 0, 1, 2
+
 
 class VariableLayout:
     """Indices of the decision variables in the flat vector z."""
@@ -22,17 +25,40 @@ class VariableLayout:
         n, m, N = num_positions, num_velocities, horizon
         self.n, self.m, self.N = n, m, N
         self.num_variables = 0
-        self.q = self.AddVariables("q", (N + 1, n))
-        self.nu = self.AddVariables("nu", (N + 1, m))
-        self.u = self.AddVariables("u", (N, m))
+        self._roles: list[tuple[np.ndarray, int]] = []
+        self.q = self.AddVariables("q", (N + 1, n), role=STATE)
+        self.nu = self.AddVariables("nu", (N + 1, m), role=STATE)
+        self.u = self.AddVariables("u", (N, m), role=INPUT)
         self.robot_variables = self.num_variables
 
-    def AddVariables(self, name: str, shape: tuple[int, ...]) -> np.ndarray:
-        """Appends variables to z; returns their indices with the given shape."""
+    def AddVariables(
+        self, name: str, shape: tuple[int, ...], role: int = OTHER
+    ) -> np.ndarray:
+        """Appends variables to z; returns their indices with the given shape.
+
+        ``role``: STATE (shape (N + 1, ...): the state at each knot), INPUT
+        (shape (N, ...): the input of each step) or OTHER (e.g. slacks). The
+        roles let a QP solver use the time structure (Roles)."""
         count = int(np.prod(shape))
         idx = np.arange(self.num_variables, self.num_variables + count).reshape(shape)
         self.num_variables += count
+        expected = {STATE: self.N + 1, INPUT: self.N}.get(role)
+        if expected is not None and shape[0] != expected:
+            raise ValueError(f"{name}: a {role=} block must have {expected} rows")
+        self._roles.append((idx, role))
         return idx
+
+    def Roles(self) -> tuple[np.ndarray, np.ndarray]:
+        """(role, knot) of every variable: the role each block was added
+        with and, for states and inputs, the knot or step (else −1)."""
+        role = np.full(self.num_variables, OTHER)
+        knot = np.full(self.num_variables, -1)
+        for idx, r in self._roles:
+            role[idx.ravel()] = r
+            if r != OTHER:
+                steps = np.arange(idx.shape[0]).reshape((-1,) + (1,) * (idx.ndim - 1))
+                knot[idx.ravel()] = np.broadcast_to(steps, idx.shape).ravel()
+        return role, knot
 
     def Split(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return z[self.q], z[self.nu], z[self.u]

@@ -75,6 +75,7 @@ class HierarchicalSolver:
         rti_prediction_tolerance: float = 0.0,
         rti_constraint_tolerance: float = 0.0,
         rti_early_pass_check: bool = False,
+        qp_solver: str = "piqp",
     ):
         self.program = program
         self.method = method
@@ -87,9 +88,12 @@ class HierarchicalSolver:
         self.stages = MakeStages(program.tasks, method)
         options = solver_options if solver_options is not None else SolverOptions()
         if solver == "rti":
-            qp_options = dict(options.options.get("PIQP", {}))
+            entry = {"piqp": "PIQP", "hpipm": "HPIPM"}[qp_solver]
+            qp_options = dict(options.options.get(entry, {}))
             self.stage_solvers = [
-                RtiStageSolver(program, s, qp_options, rti_proximal_weight)
+                RtiStageSolver(
+                    program, s, qp_options, rti_proximal_weight, qp_solver=qp_solver
+                )
                 for s in self.stages
             ]
         else:

@@ -15,6 +15,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from sm2ith_drake.control.groups import ConstraintGroup
+from sm2ith_drake.control.hpipm_library import Library
+from sm2ith_drake.control.hpipm_workspace import HpipmWorkspace
 from sm2ith_drake.control.piqp_workspace import PIQP_DEFAULT_SETTINGS, PiqpWorkspace
 from sm2ith_drake.control.profiling import PROFILER
 from sm2ith_drake.control.program import MpcProgram
@@ -49,6 +51,7 @@ class RtiStageSolver:
         stage: Stage,
         qp_options: dict,
         proximal_weight: float | np.ndarray = 1.0,
+        qp_solver: str = "piqp",
     ):
         self.program = program
         self.stage = stage
@@ -59,8 +62,11 @@ class RtiStageSolver:
         self._shared = self._problem.shared_constraints
         self._lex = self._problem.lexicographic_groups
         self._cost = self._problem.cost_groups
-        self._settings = dict(PIQP_DEFAULT_SETTINGS)
+        self._qp_solver = qp_solver
+        self._settings = dict(PIQP_DEFAULT_SETTINGS if qp_solver == "piqp" else {})
         self._settings.update(qp_options)
+        if qp_solver == "hpipm":
+            Library()  # HpipmUnavailable, with what to install, if missing
         # Not a PIQP setting: whether to update one PIQP workspace instead of
         # setting one up per solve (PiqpWorkspace; off: reproducible runs).
         self._reuse_workspace = bool(self._settings.pop("reuse_workspace", False))
@@ -114,14 +120,24 @@ class RtiStageSolver:
             prows.append(S.row)
             pcols.append(S.col)
         p_pattern = (np.concatenate(prows), np.concatenate(pcols))
-        qp = PiqpWorkspace(
-            num_variables=nv,
-            p_pattern=p_pattern,
-            a_pattern=a_pattern,
-            equality_rows=equality_rows,
-            settings=self._settings,
-            reuse_workspace=self._reuse_workspace,
-        )
+        if self._qp_solver == "hpipm":
+            qp = HpipmWorkspace(
+                num_variables=nv,
+                p_pattern=p_pattern,
+                a_pattern=a_pattern,
+                equality_rows=equality_rows,
+                settings=self._settings,
+                roles=self.program.layout.Roles(),
+            )
+        else:
+            qp = PiqpWorkspace(
+                num_variables=nv,
+                p_pattern=p_pattern,
+                a_pattern=a_pattern,
+                equality_rows=equality_rows,
+                settings=self._settings,
+                reuse_workspace=self._reuse_workspace,
+            )
         # The cost Hessian is only nonzero on the diagonal and among the
         # (few) columns the cost groups touch: it is assembled there, small
         # and dense, then gathered into P's pattern.

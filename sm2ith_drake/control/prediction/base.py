@@ -16,6 +16,7 @@ steps (that lives in the HumanPredictor's Context, control/prediction/slots.py).
 
 import numpy as np
 
+from sm2ith_drake.control.groups import STATE
 from sm2ith_drake.control.prediction.slots import ParkedPositions
 from sm2ith_drake.humans.messages import HumanPrediction
 
@@ -59,7 +60,9 @@ class Predictor:
 
     def AddVariables(self, layout) -> None:
         self.layout = layout
-        self.p = layout.AddVariables("human_p", (self.N + 1, self.num_slots, 2))
+        self.p = layout.AddVariables(
+            "human_p", (self.N + 1, self.num_slots, 2), role=STATE
+        )
 
     def ConstraintGroups(self, program) -> list:
         return []

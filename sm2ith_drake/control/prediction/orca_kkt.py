@@ -63,6 +63,7 @@ satisfies the coupled KKT system.
 
 import numpy as np
 
+from sm2ith_drake.control.groups import INPUT
 from sm2ith_drake.control.prediction.base import Predictor
 from sm2ith_drake.control.prediction.kkt_groups import (
     KktBlocks,
@@ -116,8 +117,10 @@ class OrcaKkt(Predictor):
     def AddVariables(self, layout):
         super().AddVariables(layout)
         N, H = self.N, self.num_slots
-        self.a = layout.AddVariables("human_a", (N, H, 2))
-        self.lam = layout.AddVariables("human_lambda", (N, H, self.num_multipliers))
+        self.a = layout.AddVariables("human_a", (N, H, 2), role=INPUT)
+        self.lam = layout.AddVariables(
+            "human_lambda", (N, H, self.num_multipliers), role=INPUT
+        )
 
     def MultiplierVariables(self):
         """The multipliers λ of every person's relaxed-ORCA QP."""

@@ -1,0 +1,200 @@
+"""HPIPM's OCP QP interior-point solver through ctypes (optional).
+
+HPIPM (the Riccati-structured interior-point QP solver acados uses) and its
+linear algebra, BLASFEO, come as shared libraries inside the
+``comma-deps-acados`` wheel (``pip install 'sm2ith_drake[hpipm]'``, Python
+≥ 3.12). This module loads them and wraps the calls one OCP QP needs:
+dimensions, data by field name, a solve, the solution. Nothing is compiled
+here. See control/hpipm_workspace.py for how a stage QP becomes an OCP QP.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import importlib.util
+import os
+from functools import cache
+
+import numpy as np
+
+from sm2ith_drake.errors import UserError
+
+# HPIPM's modes (enum hpipm_mode).
+MODES = {"speed_abs": 0, "speed": 1, "balance": 2, "robust": 3}
+# HPIPM's exit status codes.
+STATUS = {0: "solved", 1: "max_iter_reached", 2: "min_step", 3: "nan"}
+
+_DOUBLE_P = ctypes.POINTER(ctypes.c_double)
+
+
+class HpipmUnavailable(UserError):
+    """The HPIPM libraries are not installed."""
+
+
+@cache
+def Library():
+    """The loaded libhpipm (BLASFEO loaded first, globally)."""
+    spec = importlib.util.find_spec("acados")
+    locations = list(spec.submodule_search_locations or []) if spec else []
+    for root in locations:
+        libdir = os.path.join(root, "install", "lib")
+        path = os.path.join(libdir, "libhpipm.so")
+        if os.path.exists(path):
+            ctypes.CDLL(os.path.join(libdir, "libblasfeo.so"), mode=ctypes.RTLD_GLOBAL)
+            lib = ctypes.CDLL(path, mode=ctypes.RTLD_GLOBAL)
+            break
+    else:
+        raise HpipmUnavailable(
+            "controller.qp_solver: hpipm needs HPIPM, which comes with the "
+            "optional extra: pip install 'sm2ith_drake[hpipm]' (Python >= 3.12)"
+        )
+    for name in (
+        "d_ocp_qp_dim_strsize",
+        "d_ocp_qp_strsize",
+        "d_ocp_qp_sol_strsize",
+        "d_ocp_qp_ipm_arg_strsize",
+        "d_ocp_qp_ipm_ws_strsize",
+        "d_ocp_qp_dim_memsize",
+        "d_ocp_qp_memsize",
+        "d_ocp_qp_sol_memsize",
+        "d_ocp_qp_ipm_arg_memsize",
+        "d_ocp_qp_ipm_ws_memsize",
+    ):
+        getattr(lib, name).restype = ctypes.c_size_t
+    lib.d_ocp_qp_sol_get.argtypes = [
+        ctypes.c_char_p,
+        ctypes.c_int,
+        ctypes.c_void_p,
+        ctypes.c_void_p,
+    ]
+    lib.d_ocp_qp_sol_get.restype = None
+    return lib
+
+
+def Available() -> bool:
+    try:
+        Library()
+    except (HpipmUnavailable, OSError):
+        return False
+    return True
+
+
+def _Memory(size) -> ctypes.Array:
+    return ctypes.create_string_buffer(max(int(size), 1))
+
+
+class OcpQp:
+    """One OCP QP of fixed dimensions with HPIPM's IPM workspace.
+
+    Stages k = 0..N with states x_k (nx[k]) and inputs u_k (nu[k]):
+    min Σ ½[u;x]ᵀ[R S; Sᵀ Q][u;x] + rᵀu + qᵀx + slack costs
+    s.t. x_{k+1} = A_k x_k + B_k u_k + b_k, box bounds on some entries of
+    u_k and x_k, lg − sl ≤ C_k x_k + D_k u_k ≤ ug + su on general rows, some
+    of them soft (slacks sl, su ≥ 0 with costs ½Z s² + z s).
+    """
+
+    def __init__(self, nx, nu, nbx, nbu, ng, nsg, *, mode: str, settings: dict):
+        lib = self.lib = Library()
+        N = len(nx) - 1
+        self.N = N
+        self.nx, self.nu = list(nx), list(nu)
+        self._dim = _Memory(lib.d_ocp_qp_dim_strsize())
+        self._dim_mem = _Memory(lib.d_ocp_qp_dim_memsize(ctypes.c_int(N)))
+        lib.d_ocp_qp_dim_create(ctypes.c_int(N), self._dim, self._dim_mem)
+        for k in range(N + 1):
+            for field, values in (
+                ("nx", nx),
+                ("nu", nu),
+                ("nbx", nbx),
+                ("nbu", nbu),
+                ("ng", ng),
+                ("nsg", nsg),
+            ):
+                lib.d_ocp_qp_dim_set(
+                    field.encode(),
+                    ctypes.c_int(k),
+                    ctypes.c_int(int(values[k])),
+                    self._dim,
+                )
+        self._qp = _Memory(lib.d_ocp_qp_strsize())
+        self._qp_mem = _Memory(lib.d_ocp_qp_memsize(self._dim))
+        lib.d_ocp_qp_create(self._dim, self._qp, self._qp_mem)
+        self._qp_address = ctypes.addressof(self._qp)
+        self._setters: dict = {}
+        self._sol = _Memory(lib.d_ocp_qp_sol_strsize())
+        self._sol_mem = _Memory(lib.d_ocp_qp_sol_memsize(self._dim))
+        lib.d_ocp_qp_sol_create(self._dim, self._sol, self._sol_mem)
+        # IPM arguments and workspaces: the mode asked for, and a robust
+        # one for a QP that mode does not solve (Solve(robust=True)).
+        self._ipm = [self._Ipm(m, settings) for m in (mode, "balance")]
+
+    def _Ipm(self, mode: str, settings: dict):
+        lib = self.lib
+        arg = _Memory(lib.d_ocp_qp_ipm_arg_strsize())
+        arg_mem = _Memory(lib.d_ocp_qp_ipm_arg_memsize(self._dim))
+        lib.d_ocp_qp_ipm_arg_create(self._dim, arg, arg_mem)
+        lib.d_ocp_qp_ipm_arg_set_default(ctypes.c_int(MODES[mode]), arg)
+        for key, value in settings.items():
+            self._SetArgument(arg, key, value)
+        ws = _Memory(lib.d_ocp_qp_ipm_ws_strsize())
+        ws_mem = _Memory(lib.d_ocp_qp_ipm_ws_memsize(self._dim, arg))
+        lib.d_ocp_qp_ipm_ws_create(self._dim, arg, ws, ws_mem)
+        return arg, arg_mem, ws, ws_mem
+
+    def _SetArgument(self, arg, key: str, value) -> None:
+        """An IPM argument by HPIPM's name (iter_max, mu0, tol_stat, ...)."""
+        if isinstance(value, bool) or isinstance(value, int | np.integer):
+            c_value = ctypes.c_int(int(value))
+        else:
+            c_value = ctypes.c_double(float(value))
+        self.lib.d_ocp_qp_ipm_arg_set(key.encode(), ctypes.byref(c_value), arg)
+
+    def Setter(self, field: str):
+        """HPIPM's setter of one field: f(stage, address, qp)."""
+        setter = self._setters.get(field)
+        if setter is None:
+            setter = getattr(self.lib, "d_ocp_qp_set_" + field)
+            setter.argtypes = [ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p]
+            setter.restype = None
+            self._setters[field] = setter
+        return setter
+
+    def Set(self, field: str, stage: int, value) -> None:
+        """QP data by HPIPM's field name (A, b, lbx_mask, idxs, ...);
+        matrices are passed column-major."""
+        if field.startswith("idx"):
+            array = np.ascontiguousarray(value, dtype=np.int32)
+        else:
+            array = np.asfortranarray(value, dtype=np.float64)
+        self.Setter(field)(stage, array.ctypes.data, self._qp_address)
+
+    def SetFrom(self, calls) -> None:
+        """Many fields at once: (setter, stage, address) triples whose
+        addresses point into arrays the caller keeps alive."""
+        qp = self._qp_address
+        for setter, stage, address in calls:
+            setter(stage, address, qp)
+
+    def Solve(self, robust: bool = False) -> tuple[str, int]:
+        """Returns (status, iterations); ``robust``: in the balanced mode."""
+        arg, _, ws, _ = self._ipm[int(robust)]
+        self.lib.d_ocp_qp_ipm_solve(self._qp, self._sol, arg, ws)
+        status, iterations = ctypes.c_int(), ctypes.c_int()
+        self.lib.d_ocp_qp_ipm_get_status(ws, ctypes.byref(status))
+        self.lib.d_ocp_qp_ipm_get_iter(ws, ctypes.byref(iterations))
+        return STATUS.get(status.value, f"status {status.value}"), iterations.value
+
+    def Get(self, field: str, stage: int, size: int) -> np.ndarray:
+        """A solution vector ("x", "u", "sl", ...) of one stage."""
+        out = np.zeros(max(size, 1))
+        self.GetInto(
+            [(self.lib.d_ocp_qp_sol_get, field.encode(), stage, out.ctypes.data)]
+        )
+        return out[:size]
+
+    def GetInto(self, calls) -> None:
+        """Solution vectors into caller-kept arrays: (getter, field, stage,
+        address) with getter = lib.d_ocp_qp_sol_get."""
+        sol = ctypes.addressof(self._sol)
+        for getter, field, stage, address in calls:
+            getter(field, stage, sol, address)

@@ -1,0 +1,347 @@
+"""A stage QP solved as an optimal-control QP by HPIPM (optional).
+
+The stage QPs of the RTI (control/rti_solver.py) have the time structure of
+an MPC: every variable belongs to one knot, every row couples at most two
+neighbouring knots. HPIPM (control/hpipm_library.py) solves such QPs with a
+Riccati recursion on dense per-stage blocks. This module casts a stage QP
+into HPIPM's form, once per sparsity pattern, and writes the values in on
+every solve:
+
+- states x_k: the variables the layout marks as states at knot k (robot q,
+  ν; people's positions). Variables with equal bounds (the measured state
+  at knot 0, people a predictor fixes) are constants, moved into the rows;
+- inputs u_k: the variables marked as inputs of step k (robot u; people's
+  actions and ORCA multipliers). An input of step k − 1 that a row of step
+  k reads (the people's previous action, in the ORCA-KKT rows) is carried
+  into x_k as a copy;
+- dynamics: the equality rows that reach the next knot's states, solved
+  for them: x_{k+1} = A_k x_k + B_k u_k + b_k;
+- every other row is a general constraint of the step whose inputs it
+  reads (or of its first knot), with the next knot's states substituted by
+  the dynamics (the DT-CBF rows read h at k and k + 1);
+- the other variables (constraint slacks) must each sit in one row, ≥ 0,
+  with a diagonal cost: HPIPM's soft constraints, with the same cost.
+
+Equality rows that are not dynamics (the stationarity of the people's
+ORCA QPs) are kept as two-sided rows widened by ``equality_relaxation``
+(1e-7, a tenth of the QP tolerance): HPIPM's IPM stalls on rows with equal
+bounds. A stage QP that does not have this structure raises ValueError when
+its pattern is built.
+
+Measured on stage QPs of the benchmark (README, Benchmark): with 3 people
+HPIPM is 1.5–1.8× faster than PIQP; with 10 people its dense stage blocks
+(100+ inputs) make it ~10× slower. Solutions agree with PIQP's to ~1e-3
+(the stage QPs are degenerate: many solutions within the tolerances).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sm2ith_drake.control.hpipm_library import OcpQp
+from sm2ith_drake.control.hpipm_structure import OcpStructure
+from sm2ith_drake.control.profiling import PROFILER
+
+# HPIPM's IPM settings (HPIPM's argument names) and ours.
+HPIPM_DEFAULT_SETTINGS = dict(
+    mode="speed_abs",
+    iter_max=100,
+    mu0=1e4,
+    tol_stat=1e-6,
+    tol_eq=1e-6,
+    tol_ineq=1e-6,
+    tol_comp=1e-6,
+    equality_relaxation=1e-7,
+)
+# Stand-in for an infinite bound (its side is masked off).
+_BIG = 1e9
+
+
+class HpipmWorkspace:
+    """A sparse QP with a fixed pattern and time structure, solved by HPIPM.
+
+    Same interface as control/piqp_workspace.PiqpWorkspace, plus ``roles``:
+    (role, knot) of every variable (VariableLayout.Roles).
+    """
+
+    def __init__(
+        self,
+        *,
+        num_variables: int,
+        p_pattern: tuple[np.ndarray, np.ndarray],
+        a_pattern: tuple[np.ndarray, np.ndarray],
+        equality_rows: np.ndarray,
+        settings: dict,
+        roles: tuple[np.ndarray, np.ndarray],
+    ):
+        self.n = num_variables
+        settings = {**HPIPM_DEFAULT_SETTINGS, **settings}
+        self.relaxation = float(settings.pop("equality_relaxation"))
+        self.mode = settings.pop("mode")
+        self.settings = settings
+        self.kind, self.knot = roles
+        # P: upper triangle, duplicates merged (the values come in this order).
+        rows, cols = p_pattern
+        keep = rows <= cols
+        pairs = np.unique(np.stack([rows[keep], cols[keep]], axis=1), axis=0)
+        diag = np.arange(self.n)
+        pairs = np.unique(np.concatenate([pairs, np.stack([diag, diag], 1)]), axis=0)
+        self._p_rows, self._p_cols = pairs[:, 0], pairs[:, 1]
+        self.a_rows, self.a_cols = (np.asarray(a, dtype=int) for a in a_pattern)
+        self.num_rows = int(self.a_rows.max()) + 1 if self.a_rows.size else 0
+        self.equality = np.zeros(self.num_rows, dtype=bool)
+        self.equality[equality_rows] = True
+        self.N = int(self.knot.max())
+        self._structures: dict = {}
+
+    @property
+    def p_pattern(self) -> tuple[np.ndarray, np.ndarray]:
+        return self._p_rows, self._p_cols
+
+    @PROFILER.Timed("hpipm")
+    def Solve(self, p_values, q, a_values, x_lower, x_upper, lower, upper):
+        """As PiqpWorkspace.Solve. Returns (x, status, iterations)."""
+        pinned = x_lower == x_upper
+        finite = tuple(np.isfinite(v) for v in (x_lower, x_upper, lower, upper))
+        key = (pinned.tobytes(),) + tuple(f.tobytes() for f in finite)
+        try:
+            structure = self._structures.get(key)
+            if structure is None:
+                with PROFILER.Phase("hpipm_structure"):
+                    structure = _Structure(self, pinned, finite)
+                if len(self._structures) >= 4:
+                    self._structures.pop(next(iter(self._structures)))
+                self._structures[key] = structure
+            return structure.Solve(
+                p_values, q, a_values, x_lower, x_upper, lower, upper
+            )
+        except (ValueError, np.linalg.LinAlgError) as e:
+            return None, f"qp error: {e}", 0
+
+
+class _Structure(OcpStructure):
+    """An OcpStructure with its HPIPM QP and the per-solve data path."""
+
+    def __init__(self, ws: HpipmWorkspace, pinned, finite):
+        super().__init__(ws, pinned, finite)
+        states, K = self.states, self.N + 1
+        x_lower_finite, x_upper_finite, lower_finite, upper_finite = finite
+        self.qp = OcpQp(
+            [len(x) for x in self.X],
+            [len(u) for u in self.U],
+            [len(i) for i in self.idxbx],
+            [len(i) for i in self.idxbu],
+            [len(g) for g in self.g_rows],
+            [len(s) for s in self.soft],
+            mode=ws.mode,
+            settings=ws.settings,
+        )
+        # Fixed data: bound indices, soft rows, which bound sides exist.
+        for k in range(K):
+            x, u, g = states[k], self.U[k], self.g_rows[k]
+            for name, idx, v in (("x", self.idxbx[k], x), ("u", self.idxbu[k], u)):
+                if len(idx):
+                    self.qp.Set("idxb" + name, k, idx)
+                    self.qp.Set(f"lb{name}_mask", k, x_lower_finite[v[idx]])
+                    self.qp.Set(f"ub{name}_mask", k, x_upper_finite[v[idx]])
+            if len(g):
+                self.qp.Set("lg_mask", k, lower_finite[g])
+                self.qp.Set("ug_mask", k, upper_finite[g])
+            if len(self.soft[k]):
+                nb = len(self.idxbx[k]) + len(self.idxbu[k])
+                ones = np.ones(len(self.soft[k]))
+                self.qp.Set("idxs", k, nb + self.soft[k])
+                # The rows' upper sides are off: their slacks stay 0.
+                self.qp.Set("Zu", k, ones)
+                self.qp.Set("zu", k, ones)
+        self._Plan(self.states)
+
+    def _Plan(self, states):
+        """The per-solve data path: every field of every stage is gathered
+        from a source array (padded blocks, vectors over z) into one staging
+        array at a fixed address, then handed to HPIPM; the solution comes
+        back into one array the same way."""
+        N, K, sh, n = self.N, self.N + 1, self.shapes, self.ws.n
+        mD, mX, mU = sh["DX"][1], sh["DX"][2], sh["DU"][2]
+        mG = sh["GX"][1]
+        sizes = dict(
+            A=K * mD * mX, B=K * mD * mU, b=K * mD, Q=K * mX * mX, R=K * mU * mU,
+            S=K * mU * mX, C=K * mG * mX, D=K * mG * mU, lg=K * mG, ug=K * mG,
+            q=n, lb=n, ub=n, Zl=n, zl=n,
+        )  # fmt: skip
+        entries = []  # (field, stage, source, indices into it, F order)
+
+        def Block(source, k, rows, cols, m1, m2):
+            i, j = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
+            return ((k * m1 + i) * m2 + j).ravel(order="F")
+
+        for k in range(K):
+            X, U, ns, nX, nU = (
+                self.X[k],
+                self.U[k],
+                self.ns[k],
+                len(self.X[k]),
+                len(self.U[k]),
+            )
+            nG = len(self.g_rows[k])
+            if k < N:
+                nD, nX1 = self.ns[k + 1], len(self.X[k + 1])
+                zero, one = sizes["A"], sizes["A"] + 1
+                if nX:
+                    M = np.full((nX1, nX), zero)
+                    M[:nD] = Block("A", k, nD, nX, mD, mX).reshape((nD, nX), order="F")
+                    entries.append(("A", k, "A", M.ravel(order="F")))
+                zero, one = sizes["B"], sizes["B"] + 1
+                M = np.full((nX1, nU), zero)
+                M[:nD] = Block("B", k, nD, nU, mD, mU).reshape((nD, nU), order="F")
+                M[nD + np.arange(nX1 - nD), self.copy_pos[k]] = one
+                entries.append(("B", k, "B", M.ravel(order="F")))
+                v = np.full(nX1, sizes["b"])
+                v[:nD] = k * mD + np.arange(nD)
+                entries.append(("b", k, "b", v))
+            if nX:
+                entries.append(("Q", k, "Q", Block("Q", k, nX, nX, mX, mX)))
+                v = np.full(nX, sizes["q"])
+                v[:ns] = X[:ns]
+                entries.append(("q", k, "q", v))
+            if nU:
+                entries.append(("R", k, "R", Block("R", k, nU, nU, mU, mU)))
+                entries.append(("r", k, "q", U))
+                if nX:
+                    entries.append(("S", k, "S", Block("S", k, nU, nX, mU, mX)))
+            for name, idx, v in (
+                ("x", self.idxbx[k], states[k]),
+                ("u", self.idxbu[k], U),
+            ):
+                if len(idx):
+                    entries.append(("lb" + name, k, "lb", v[idx]))
+                    entries.append(("ub" + name, k, "ub", v[idx]))
+            if nG:
+                if nX:
+                    entries.append(("C", k, "C", Block("C", k, nG, nX, mG, mX)))
+                if nU:
+                    entries.append(("D", k, "D", Block("D", k, nG, nU, mG, mU)))
+                entries.append(("lg", k, "lg", k * mG + np.arange(nG)))
+                entries.append(("ug", k, "ug", k * mG + np.arange(nG)))
+            if len(self.soft[k]):
+                entries.append(("Zl", k, "Zl", self.soft_vars[k]))
+                entries.append(("zl", k, "zl", self.soft_vars[k]))
+        total = sum(len(e[3]) for e in entries)
+        self.staging = np.zeros(max(total, 1))
+        base, offset = self.staging.ctypes.data, 0
+        gathers: dict = {}
+        self.set_calls = []
+        for field, k, source, indices in entries:
+            positions = offset + np.arange(len(indices))
+            gathers.setdefault(source, ([], []))
+            gathers[source][0].append(positions)
+            gathers[source][1].append(indices)
+            self.set_calls.append((self.qp.Setter(field), k, base + 8 * offset))
+            offset += len(indices)
+        self.gathers = {
+            name: (np.concatenate(p), np.concatenate(i))
+            for name, (p, i) in gathers.items()
+        }
+        # The solution: x (free states, not the copies), u, slacks.
+        getter = self.qp.lib.d_ocp_qp_sol_get
+        calls, targets, positions, offset = [], [], [], 0
+        size = sum(
+            len(x) + len(u) + len(s)
+            for x, u, s in zip(self.X, self.U, self.soft_vars, strict=True)
+        )
+        self.out = np.zeros(max(size, 1))
+        base = self.out.ctypes.data
+        for k in range(K):
+            for field, vars_, keep in (
+                (b"x", self.X[k], self.ns[k]),
+                (b"u", self.U[k], len(self.U[k])),
+                (b"sl", self.soft_vars[k], len(self.soft_vars[k])),
+            ):
+                if len(vars_):
+                    calls.append((getter, field, k, base + 8 * offset))
+                    targets.append(vars_[:keep])
+                    positions.append(offset + np.arange(keep))
+                    offset += len(vars_)
+        self.get_calls = calls
+        self.out_targets = np.concatenate(targets) if targets else np.zeros(0, int)
+        self.out_positions = (
+            np.concatenate(positions) if positions else np.zeros(0, int)
+        )
+
+    def Solve(self, p_values, q, a_values, x_lower, x_upper, lower, upper):
+        ws, qp = self.ws, self.qp
+        if np.any(x_lower[self.slacks] != 0):
+            raise ValueError("a slack variable must have bounds [0, inf)")
+        fixed_values = np.where(x_lower == x_upper, x_lower, 0.0)
+        r, c = ws.a_rows, ws.a_cols
+        pr, pc = ws.p_pattern
+        ok = self.a_ok
+        dests = [self.a_dest[ok], self.p_first, self.p_second, self.pad_index]
+        weights = [a_values[ok], p_values, p_values, np.ones(self.pad_index.size)]
+        keep = [d >= 0 for d in dests]
+        buf = np.bincount(
+            np.concatenate([d[m] for d, m in zip(dests, keep, strict=True)]),
+            np.concatenate([w[m] for w, m in zip(weights, keep, strict=True)]),
+            minlength=self.size,
+        )
+        B = self._Blocks(buf)
+        # Rows: constants from the fixed variables; equalities widened.
+        f = self.a_fixed
+        const = np.bincount(
+            r[f], a_values[f] * fixed_values[c[f]], minlength=ws.num_rows
+        )
+        lo, hi = lower - const, upper - const
+        relax = (lo == hi) & ~self.dyn
+        lo = np.append(np.where(relax, lo - ws.relaxation, lo), 0.0)
+        hi = np.append(np.where(relax, hi + ws.relaxation, hi), 0.0)
+        slack_coef = np.zeros(ws.n)
+        slack_coef[c[self.a_slack]] = a_values[self.a_slack]
+        # Cost: linear terms from the fixed variables.
+        lin = np.array(q, dtype=float)
+        pf = self.p_fixed
+        lin += np.bincount(pr[pf], p_values[pf] * fixed_values[pc[pf]], minlength=ws.n)
+        lin += np.bincount(pc[pf], p_values[pf] * fixed_values[pr[pf]], minlength=ws.n)
+        p_diag = np.zeros(ws.n)
+        d = pr == pc
+        p_diag[pr[d]] = p_values[d]
+        # Dynamics of all steps at once: x⁺ = A x + B u + b.
+        mX, mU = B["DX"].shape[2], B["DU"].shape[2]
+        rhs = np.concatenate(
+            [B["DX"], B["DU"], lo[self.dyn_gather][:, :, None]], axis=2
+        )
+        solved = np.linalg.solve(B["DN"], rhs)
+        A_all, B_all = -solved[:, :, :mX], -solved[:, :, mX : mX + mU]
+        b_all = solved[:, :, -1]
+        C_all = B["GX"] + B["GN"] @ A_all
+        D_all = B["GU"] + B["GN"] @ B_all
+        shift = np.einsum("kgd,kd->kg", B["GN"], b_all)
+        g_lo = lo[self.g_gather] - shift
+        g_hi = hi[self.g_gather] - shift
+        if np.any(slack_coef[self.slacks] <= 0):
+            raise ValueError("a slack must enter its row positively")
+        # ½ P s² + c s with the row's slack sl = coef · s.
+        coef = np.where(slack_coef != 0, slack_coef, 1.0)
+        sources = dict(
+            A=A_all, B=B_all, b=b_all, Q=B["Q"], q=lin, R=B["R"], S=B["S"],
+            lb=np.maximum(x_lower, -_BIG), ub=np.minimum(x_upper, _BIG),
+            C=C_all, D=D_all, lg=np.maximum(g_lo, -_BIG),
+            ug=np.minimum(g_hi, _BIG), Zl=p_diag / coef**2, zl=lin / coef,
+        )  # fmt: skip
+        staging = self.staging
+        for name, (positions, indices) in self.gathers.items():
+            flat = np.concatenate([sources[name].ravel(), [0.0, 1.0]])
+            staging[positions] = flat[indices]
+        qp.SetFrom(self.set_calls)
+        with PROFILER.Phase("hpipm_ipm"):
+            status, iterations = qp.Solve()
+            if status != "solved":
+                # Rare (a cold start): the balanced mode, on the same data.
+                status, more = qp.Solve(robust=True)
+                iterations += more
+        qp.GetInto(self.get_calls)
+        z = fixed_values
+        z[self.out_targets] = self.out[self.out_positions]
+        z[self.slacks] /= coef[self.slacks]
+        if not np.all(np.isfinite(z)):
+            return None, "nan", iterations
+        return z, status, iterations

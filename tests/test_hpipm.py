@@ -1,0 +1,231 @@
+"""HPIPM as the stage-QP solver (controller.qp_solver: hpipm): the OCP form
+of a stage QP against PIQP on the same QPs, reproducibility, structure
+errors, and the message when the optional extra is missing."""
+
+import importlib.util
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from sm2ith_drake.control import hpipm_library
+from sm2ith_drake.control.groups import INPUT, OTHER, STATE, VariableLayout
+from sm2ith_drake.control.hpipm_workspace import HpipmWorkspace
+from sm2ith_drake.control.piqp_workspace import PIQP_DEFAULT_SETTINGS, PiqpWorkspace
+from sm2ith_drake.resources import GetDiagramsDir
+from sm2ith_drake.run.simulation import RunSimulation
+from sm2ith_drake.scenario_loader import LoadScenario
+
+needs_hpipm = pytest.mark.skipif(
+    not hpipm_library.Available(),
+    reason="HPIPM is the optional extra sm2ith_drake[hpipm] (Python >= 3.12)",
+)
+
+
+def _Piqp(ws: HpipmWorkspace, tolerance: float = 1e-9):
+    """A PIQP workspace on the same pattern, solving to ``tolerance`` (the
+    reference: tighter than the controller's), and P's values mapped to it."""
+    settings = dict(PIQP_DEFAULT_SETTINGS)
+    settings.update(
+        eps_abs=tolerance,
+        eps_rel=tolerance,
+        eps_duality_gap_abs=tolerance,
+        eps_duality_gap_rel=tolerance,
+    )
+    piqp = PiqpWorkspace(
+        num_variables=ws.n,
+        p_pattern=ws.p_pattern,
+        a_pattern=(ws.a_rows, ws.a_cols),
+        equality_rows=np.nonzero(ws.equality)[0],
+        settings=settings,
+    )
+    rows, cols = ws.p_pattern
+    pr, pc = piqp.p_pattern
+
+    def Values(p_values):
+        P = sp.csr_matrix((p_values, (rows, cols)), shape=(ws.n, ws.n))
+        return np.asarray(P[pr, pc]).ravel()
+
+    return piqp, Values
+
+
+def _Objective(ws, p_values, q, z):
+    rows, cols = ws.p_pattern
+    P = sp.csr_matrix((p_values, (rows, cols)), shape=(ws.n, ws.n))
+    return (
+        0.5 * z @ (P @ z) + 0.5 * z @ (P.T @ z) - 0.5 * z @ (P.diagonal() * z) + (q @ z)
+    )
+
+
+def _Violation(ws, a_values, z, x_lower, x_upper, lower, upper):
+    A = sp.csr_matrix((a_values, (ws.a_rows, ws.a_cols)), shape=(ws.num_rows, ws.n))
+    g = A @ z
+    return max(
+        np.max(lower - g, initial=0),
+        np.max(g - upper, initial=0),
+        np.max(x_lower - z, initial=0),
+        np.max(z - x_upper, initial=0),
+    )
+
+
+@needs_hpipm
+def test_hpipm_solves_the_stage_qps_as_piqp_does(monkeypatch):
+    """Every stage QP of a 3-person crossing (Stretch 3, SM²ITH), solved by
+    HPIPM in its OCP form and by PIQP as a sparse QP to 1e-9: the same
+    optimal value, HPIPM's solution feasible; the plans agree to what the
+    QPs' degeneracy allows. (PIQP at the controller's own tolerances lands
+    up to ~2e-5 of the value further off than HPIPM.)"""
+    scenario = LoadScenario(
+        filename=GetDiagramsDir() / "crossing.scenarios.yaml",
+        scenario_name="crossing_stretch3_3h",
+        scenario_text="{controller: {qp_solver: hpipm}}",
+    )
+    compared = []
+    solve = HpipmWorkspace.Solve
+
+    def Comparing(self, p_values, q, a_values, x_lower, x_upper, lower, upper):
+        args = (a_values, x_lower, x_upper, lower, upper)
+        z, status, iterations = solve(self, p_values, q, *args)
+        piqp, Values = _Piqp(self)
+        zp, status_p, _ = piqp.Solve(Values(p_values), q, *args)
+        compared.append(
+            (
+                status,
+                status_p,
+                _Objective(self, p_values, q, z),
+                _Objective(self, p_values, q, zp),
+                _Violation(self, a_values, z, x_lower, x_upper, lower, upper),
+                np.abs(z - zp).max(),
+            )
+        )
+        return z, status, iterations
+
+    monkeypatch.setattr(HpipmWorkspace, "Solve", Comparing)
+    result = RunSimulation(scenario, duration=1.0)
+    assert all(r.mode == "solved" for r in result.log.records)
+    assert len(compared) >= 10
+    gaps = []
+    for status, status_p, f, fp, violation, gap in compared:
+        assert status == status_p == "solved"
+        assert abs(f - fp) <= 1e-5 * (1 + abs(fp)), (f, fp)
+        # Equality rows are widened by 1e-7 for HPIPM (hpipm_workspace).
+        assert violation <= 2e-7
+        gaps.append(gap)
+    assert np.median(gaps) < 1e-3 and max(gaps) < 5e-2
+
+
+@needs_hpipm
+def test_hpipm_results_do_not_depend_on_earlier_solves(monkeypatch):
+    """One workspace per pattern is reused: solving A, then B, then A again
+    gives A's solution to the last bit (so a cloned Context reproduces a
+    run)."""
+    scenario = LoadScenario(
+        filename=GetDiagramsDir() / "crossing.scenarios.yaml",
+        scenario_name="crossing_ridgeback_ur10_2h",
+        scenario_text="{controller: {qp_solver: hpipm}}",
+    )
+    calls = []
+    solve = HpipmWorkspace.Solve
+
+    def Recording(self, *args):
+        calls.append((self, [np.array(a, copy=True) for a in args]))
+        return solve(self, *args)
+
+    monkeypatch.setattr(HpipmWorkspace, "Solve", Recording)
+    RunSimulation(scenario, duration=0.6)
+    ws, first = calls[0]
+    again = [args for w, args in calls[1:] if w is ws]
+    assert again
+    z1, _, _ = solve(ws, *first)
+    solve(ws, *again[-1])
+    z2, _, _ = solve(ws, *first)
+    np.testing.assert_array_equal(z1, z2)
+
+
+def _TinyMpc(span_two_knots: bool):
+    """x_{k+1} = x_k + u_k (N = 2, x_0 = 1), ½Σx² + ½Σu², a slack-relaxed
+    lower bound on x_2 and, if asked, a row tying x_0 and x_2."""
+    layout = VariableLayout(num_positions=1, num_velocities=1, horizon=2)
+    q, nu, u = layout.q.ravel(), layout.nu.ravel(), layout.u.ravel()
+    s = layout.AddVariables("slack", (1,))
+    role, knot = layout.Roles()
+    n = layout.num_variables
+    rows, cols, vals, lo, hi = [], [], [], [], []
+
+    def Row(entries, lower, upper):
+        r = len(lo)
+        for c, v in entries:
+            rows.append(r)
+            cols.append(c)
+            vals.append(v)
+        lo.append(lower)
+        hi.append(upper)
+
+    for k in range(2):
+        Row([(q[k + 1], 1.0), (q[k], -1.0), (u[k], -1.0)], 0.0, 0.0)
+        Row([(nu[k + 1], 1.0), (nu[k], -1.0)], 0.0, 0.0)
+    Row([(q[2], 1.0), (s[0], 1.0)], 0.8, np.inf)
+    if span_two_knots:
+        Row([(q[2], 1.0), (q[0], -1.0)], -1.0, 1.0)
+    ws = HpipmWorkspace(
+        num_variables=n,
+        p_pattern=(np.arange(n), np.arange(n)),
+        a_pattern=(np.array(rows), np.array(cols)),
+        equality_rows=np.arange(4),
+        settings={},
+        roles=(role, knot),
+    )
+    p_values = np.ones(n)
+    p_values[s] = 10.0
+    qvec = np.zeros(n)
+    qvec[s] = 5.0
+    x_lower, x_upper = np.full(n, -np.inf), np.full(n, np.inf)
+    x_lower[[q[0], nu[0]]] = x_upper[[q[0], nu[0]]] = 1.0
+    x_lower[s] = 0.0
+    args = (np.array(vals), x_lower, x_upper, np.array(lo), np.array(hi))
+    return ws, p_values, qvec, args, role, layout
+
+
+@needs_hpipm
+def test_hpipm_matches_piqp_on_a_small_mpc():
+    ws, p_values, q, args, role, layout = _TinyMpc(span_two_knots=False)
+    assert role[layout.q[1, 0]] == STATE and role[layout.u[1, 0]] == INPUT
+    assert role[-1] == OTHER
+    z, status, _ = ws.Solve(p_values, q, *args)
+    piqp, Values = _Piqp(ws)
+    zp, status_p, _ = piqp.Solve(Values(p_values), q, *args)
+    assert status == status_p == "solved"
+    np.testing.assert_allclose(z, zp, atol=1e-6)
+    # The bound on x_2 is active: the slack takes what the cost prefers.
+    assert z[layout.q[2, 0]] + z[-1] == pytest.approx(0.8, abs=1e-6)
+
+
+@needs_hpipm
+def test_a_qp_without_the_time_structure_is_an_error_not_a_crash():
+    ws, p_values, q, args, _, _ = _TinyMpc(span_two_knots=True)
+    z, status, iterations = ws.Solve(p_values, q, *args)
+    assert z is None and iterations == 0
+    assert status.startswith("qp error:") and "two knots" in status
+
+
+def test_a_missing_hpipm_says_what_to_install(monkeypatch):
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name: None)
+    hpipm_library.Library.cache_clear()
+    try:
+        with pytest.raises(hpipm_library.HpipmUnavailable, match=r"\[hpipm\]"):
+            hpipm_library.Library()
+        assert not hpipm_library.Available()
+    finally:
+        hpipm_library.Library.cache_clear()
+
+
+def test_layout_roles_give_each_variable_its_knot():
+    layout = VariableLayout(num_positions=2, num_velocities=1, horizon=3)
+    slack = layout.AddVariables("slack", (4,))
+    role, knot = layout.Roles()
+    assert np.all(role[layout.q] == STATE) and np.all(role[layout.u] == INPUT)
+    np.testing.assert_array_equal(knot[layout.q[:, 1]], np.arange(4))
+    np.testing.assert_array_equal(knot[layout.u[:, 0]], np.arange(3))
+    assert np.all(role[slack] == OTHER) and np.all(knot[slack] == -1)
+    with pytest.raises(ValueError, match="rows"):
+        layout.AddVariables("bad", (2, 1), role=STATE)
