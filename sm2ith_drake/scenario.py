@@ -117,11 +117,10 @@ class ControllerConfig:
     # Drake SolverOptions; the entry "PIQP" configures the rti QPs (any PIQP
     # setting, e.g. {PIQP: {max_iter: 50}}); "SNOPT" / "Ipopt" the NLPs.
     solver_options: SolverOptions = field(default_factory=SolverOptions)
-    # The rti stage QPs' solver: "piqp" (sparse, the default) or "hpipm"
-    # (HPIPM's Riccati interior point on the QPs' time structure; the
-    # optional extra sm2ith_drake[hpipm]; settings as the solver_options
-    # entry "HPIPM"). Measured: faster with few people, far slower with
-    # many (README, Benchmark); plans agree with PIQP's to ~1e-3.
+    # The rti stage QPs' solver: "piqp" (sparse, the default), "hpipm"
+    # (HPIPM's Riccati IPM on the QPs' time structure, the extra
+    # sm2ith_drake[hpipm], options as the entry "HPIPM") or "auto" (HPIPM
+    # where its dense stage blocks are small, else PIQP). README, Benchmark.
     qp_solver: str = "piqp"
     # Sequential QP iterations per stage and control step (rti only): the
     # most passes a step may take. A pass after the first runs only while

@@ -152,8 +152,10 @@ def _ValidateController(scenario: Scenario) -> None:
         raise ScenarioError(f"controller.method must be htmpc|weighted_sum: {c.method}")
     if c.solver not in ("rti", "snopt", "ipopt"):
         raise ScenarioError(f"controller.solver must be rti|snopt|ipopt: {c.solver}")
-    if c.qp_solver not in ("piqp", "hpipm"):
-        raise ScenarioError(f"controller.qp_solver must be piqp|hpipm: {c.qp_solver}")
+    if c.qp_solver not in ("piqp", "hpipm", "auto"):
+        raise ScenarioError(
+            f"controller.qp_solver must be piqp|hpipm|auto: {c.qp_solver}"
+        )
     if c.horizon < 1:
         raise ScenarioError(f"controller.horizon must be ≥ 1, got {c.horizon}")
     _Positive(c.time_step, "controller.time_step")

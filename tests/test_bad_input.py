@@ -48,7 +48,7 @@ BAD_INPUTS = [
     ("nan_gamma", "stretch3_reach", "{safety: {gamma: .nan}}",
      ["safety.gamma"]),
     ("unknown_qp_solver", "stretch3_reach", "{controller: {qp_solver: osqp}}",
-     ["controller.qp_solver", "piqp|hpipm"]),
+     ["controller.qp_solver", "piqp|hpipm|auto"]),
     ("nan_max_step_size", "stretch3_reach",
      "{simulator_config: {max_step_size: .nan}}",
      ["simulator_config.max_step_size"]),

@@ -22,16 +22,18 @@ needs_hpipm = pytest.mark.skipif(
 )
 
 
-def _Piqp(ws: HpipmWorkspace, tolerance: float = 1e-9):
+def _Piqp(ws: HpipmWorkspace, tolerance: float | None = 1e-9):
     """A PIQP workspace on the same pattern, solving to ``tolerance`` (the
-    reference: tighter than the controller's), and P's values mapped to it."""
+    reference: tighter than the controller's; None: the controller's own
+    settings), and P's values mapped to it."""
     settings = dict(PIQP_DEFAULT_SETTINGS)
-    settings.update(
-        eps_abs=tolerance,
-        eps_rel=tolerance,
-        eps_duality_gap_abs=tolerance,
-        eps_duality_gap_rel=tolerance,
-    )
+    if tolerance is not None:
+        settings.update(
+            eps_abs=tolerance,
+            eps_rel=tolerance,
+            eps_duality_gap_abs=tolerance,
+            eps_duality_gap_rel=tolerance,
+        )
     piqp = PiqpWorkspace(
         num_variables=ws.n,
         p_pattern=ws.p_pattern,
@@ -142,7 +144,7 @@ def test_hpipm_results_do_not_depend_on_earlier_solves(monkeypatch):
     np.testing.assert_array_equal(z1, z2)
 
 
-def _TinyMpc(span_two_knots: bool):
+def _TinyMpc(span_two_knots: bool, **workspace):
     """x_{k+1} = x_k + u_k (N = 2, x_0 = 1), ½Σx² + ½Σu², a slack-relaxed
     lower bound on x_2 and, if asked, a row tying x_0 and x_2."""
     layout = VariableLayout(num_positions=1, num_velocities=1, horizon=2)
@@ -172,8 +174,8 @@ def _TinyMpc(span_two_knots: bool):
         p_pattern=(np.arange(n), np.arange(n)),
         a_pattern=(np.array(rows), np.array(cols)),
         equality_rows=np.arange(4),
-        settings={},
         roles=(role, knot),
+        **{"settings": {}, **workspace},
     )
     p_values = np.ones(n)
     p_values[s] = 10.0
@@ -206,6 +208,28 @@ def test_a_qp_without_the_time_structure_is_an_error_not_a_crash():
     z, status, iterations = ws.Solve(p_values, q, *args)
     assert z is None and iterations == 0
     assert status.startswith("qp error:") and "two knots" in status
+
+
+@needs_hpipm
+@pytest.mark.parametrize("span_two_knots", [False, True])
+def test_auto_hands_wide_or_unstructured_qps_to_piqp(span_two_knots):
+    """qp_solver auto: a pattern over the work limit, or without the time
+    structure, is solved by PIQP (the same solution as PIQP's own)."""
+    auto = dict(piqp_settings=dict(PIQP_DEFAULT_SETTINGS))
+    for settings in ({}, {"auto_max_work": 0.0}):
+        ws, p_values, q, args, _, _ = _TinyMpc(
+            span_two_knots, settings=settings, **auto
+        )
+        z, status, iterations = ws.Solve(p_values, q, *args)
+        piqp, Values = _Piqp(ws, tolerance=None)
+        zp, _, iterations_p = piqp.Solve(Values(p_values), q, *args)
+        assert status == "solved"
+        delegated = span_two_knots or settings
+        assert (ws._piqp is not None) == bool(delegated)
+        if delegated:
+            np.testing.assert_array_equal(z, zp)
+        else:
+            np.testing.assert_allclose(z, zp, atol=1e-6)
 
 
 def test_a_missing_hpipm_says_what_to_install(monkeypatch):

@@ -88,11 +88,16 @@ class HierarchicalSolver:
         self.stages = MakeStages(program.tasks, method)
         options = solver_options if solver_options is not None else SolverOptions()
         if solver == "rti":
-            entry = {"piqp": "PIQP", "hpipm": "HPIPM"}[qp_solver]
-            qp_options = dict(options.options.get(entry, {}))
+            qp_options = dict(options.options.get("PIQP", {}))
+            hpipm_options = dict(options.options.get("HPIPM", {}))
             self.stage_solvers = [
                 RtiStageSolver(
-                    program, s, qp_options, rti_proximal_weight, qp_solver=qp_solver
+                    program,
+                    s,
+                    qp_options,
+                    rti_proximal_weight,
+                    qp_solver=qp_solver,
+                    hpipm_options=hpipm_options,
                 )
                 for s in self.stages
             ]

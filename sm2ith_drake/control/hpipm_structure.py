@@ -136,6 +136,10 @@ class OcpStructure:
             self.g_gather[k, : len(self.g_rows[k])] = self.g_rows[k]
         self.states = states
         self.finite = finite
+        # Dense work per IPM iteration, roughly (Σ_k w³/3 + g w²).
+        width = np.array([len(x) + len(u) for x, u in zip(self.X, self.U, strict=True)])
+        rows = np.array([len(g) for g in self.g_rows])
+        self.work = float(np.sum(width**3 / 3 + rows * width**2))
 
     def _MapEntries(self, free, other, state, knot, step, copies):
         """Where each constraint and cost entry goes in the value buffer."""

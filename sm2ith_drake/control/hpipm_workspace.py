@@ -40,6 +40,7 @@ import numpy as np
 
 from sm2ith_drake.control.hpipm_library import OcpQp
 from sm2ith_drake.control.hpipm_structure import OcpStructure
+from sm2ith_drake.control.piqp_workspace import PiqpWorkspace
 from sm2ith_drake.control.profiling import PROFILER
 
 # HPIPM's IPM settings (HPIPM's argument names) and ours.
@@ -52,6 +53,12 @@ HPIPM_DEFAULT_SETTINGS = dict(
     tol_ineq=1e-6,
     tol_comp=1e-6,
     equality_relaxation=1e-7,
+    # controller.qp_solver: auto: PIQP for a pattern whose dense per-stage
+    # work (Σ_k w³/3 + g w², w = states + inputs, g = rows of stage k, per
+    # IPM iteration) exceeds this. Measured (README, Benchmark): HPIPM is
+    # faster at ~2.4–3.5e6 (3 people), even at ~1.2–1.5e7 (5) and far
+    # slower at ~7.5e7 (10).
+    auto_max_work=6e6,
 )
 # Stand-in for an infinite bound (its side is masked off).
 _BIG = 1e9
@@ -61,7 +68,10 @@ class HpipmWorkspace:
     """A sparse QP with a fixed pattern and time structure, solved by HPIPM.
 
     Same interface as control/piqp_workspace.PiqpWorkspace, plus ``roles``:
-    (role, knot) of every variable (VariableLayout.Roles).
+    (role, knot) of every variable (VariableLayout.Roles). With
+    ``piqp_settings`` (controller.qp_solver: auto) a pattern that lacks the
+    time structure, or whose stages are too wide for dense blocks
+    (``auto_max_work``), is solved by PIQP instead.
     """
 
     def __init__(
@@ -73,10 +83,14 @@ class HpipmWorkspace:
         equality_rows: np.ndarray,
         settings: dict,
         roles: tuple[np.ndarray, np.ndarray],
+        piqp_settings: dict | None = None,
     ):
         self.n = num_variables
         settings = {**HPIPM_DEFAULT_SETTINGS, **settings}
         self.relaxation = float(settings.pop("equality_relaxation"))
+        self.max_work = float(settings.pop("auto_max_work"))
+        self._piqp_settings = piqp_settings
+        self._piqp = None
         self.mode = settings.pop("mode")
         self.settings = settings
         self.kind, self.knot = roles
@@ -108,24 +122,65 @@ class HpipmWorkspace:
             structure = self._structures.get(key)
             if structure is None:
                 with PROFILER.Phase("hpipm_structure"):
-                    structure = _Structure(self, pinned, finite)
+                    structure = self._Structure(pinned, finite)
                 if len(self._structures) >= 4:
                     self._structures.pop(next(iter(self._structures)))
                 self._structures[key] = structure
+            if structure is _USE_PIQP:
+                piqp, order = self._Piqp()
+                return piqp.Solve(
+                    p_values[order], q, a_values, x_lower, x_upper, lower, upper
+                )
             return structure.Solve(
                 p_values, q, a_values, x_lower, x_upper, lower, upper
             )
         except (ValueError, np.linalg.LinAlgError) as e:
             return None, f"qp error: {e}", 0
 
+    def _Structure(self, pinned, finite):
+        auto = self._piqp_settings is not None
+        try:
+            structure = OcpStructure(self, pinned, finite)
+        except ValueError:
+            if auto:
+                return _USE_PIQP
+            raise
+        if auto and structure.work > self.max_work:
+            return _USE_PIQP
+        return _Structure(self, structure)
+
+    def _Piqp(self):
+        """The PIQP workspace of this pattern (auto), and the order of P's
+        values it takes."""
+        if self._piqp is None:
+            piqp = PiqpWorkspace(
+                num_variables=self.n,
+                p_pattern=self.p_pattern,
+                a_pattern=(self.a_rows, self.a_cols),
+                equality_rows=np.nonzero(self.equality)[0],
+                settings=dict(self._piqp_settings),
+            )
+            rows, cols = piqp.p_pattern
+            order = np.searchsorted(
+                self._p_rows * self.n + self._p_cols, rows * self.n + cols
+            )
+            self._piqp = piqp, order
+        return self._piqp
+
+
+# A pattern that auto hands to PIQP.
+_USE_PIQP = object()
+
 
 class _Structure(OcpStructure):
-    """An OcpStructure with its HPIPM QP and the per-solve data path."""
+    """An OcpStructure with its HPIPM QP and the per-solve data path (made
+    from a built OcpStructure: its attributes are taken over)."""
 
-    def __init__(self, ws: HpipmWorkspace, pinned, finite):
-        super().__init__(ws, pinned, finite)
+    def __init__(self, ws: HpipmWorkspace, structure: OcpStructure):
+        self.__dict__.update(structure.__dict__)
+        self.ws = ws
         states, K = self.states, self.N + 1
-        x_lower_finite, x_upper_finite, lower_finite, upper_finite = finite
+        x_lower_finite, x_upper_finite, lower_finite, upper_finite = self.finite
         self.qp = OcpQp(
             [len(x) for x in self.X],
             [len(u) for u in self.U],

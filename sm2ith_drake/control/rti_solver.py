@@ -52,6 +52,7 @@ class RtiStageSolver:
         qp_options: dict,
         proximal_weight: float | np.ndarray = 1.0,
         qp_solver: str = "piqp",
+        hpipm_options: dict | None = None,
     ):
         self.program = program
         self.stage = stage
@@ -63,9 +64,12 @@ class RtiStageSolver:
         self._lex = self._problem.lexicographic_groups
         self._cost = self._problem.cost_groups
         self._qp_solver = qp_solver
-        self._settings = dict(PIQP_DEFAULT_SETTINGS if qp_solver == "piqp" else {})
+        # PIQP's settings (the solver_options entry "PIQP"), and HPIPM's
+        # ("HPIPM") for qp_solver hpipm and auto.
+        self._settings = dict(PIQP_DEFAULT_SETTINGS)
         self._settings.update(qp_options)
-        if qp_solver == "hpipm":
+        self._hpipm_settings = dict(hpipm_options or {})
+        if qp_solver in ("hpipm", "auto"):
             Library()  # HpipmUnavailable, with what to install, if missing
         # Not a PIQP setting: whether to update one PIQP workspace instead of
         # setting one up per solve (PiqpWorkspace; off: reproducible runs).
@@ -120,14 +124,15 @@ class RtiStageSolver:
             prows.append(S.row)
             pcols.append(S.col)
         p_pattern = (np.concatenate(prows), np.concatenate(pcols))
-        if self._qp_solver == "hpipm":
+        if self._qp_solver in ("hpipm", "auto"):
             qp = HpipmWorkspace(
                 num_variables=nv,
                 p_pattern=p_pattern,
                 a_pattern=a_pattern,
                 equality_rows=equality_rows,
-                settings=self._settings,
+                settings=self._hpipm_settings,
                 roles=self.program.layout.Roles(),
+                piqp_settings=self._settings if self._qp_solver == "auto" else None,
             )
         else:
             qp = PiqpWorkspace(
