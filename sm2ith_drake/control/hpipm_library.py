@@ -126,7 +126,8 @@ class OcpQp:
         lib.d_ocp_qp_sol_create(self._dim, self._sol, self._sol_mem)
         # IPM arguments and workspaces: the mode asked for, and a robust
         # one for a QP that mode does not solve (Solve(robust=True)).
-        self._ipm = [self._Ipm(m, settings) for m in (mode, "balance")]
+        robust = {**settings, "iter_max": max(100, settings.get("iter_max", 0))}
+        self._ipm = [self._Ipm(mode, settings), self._Ipm("balance", robust)]
 
     def _Ipm(self, mode: str, settings: dict):
         lib = self.lib

@@ -121,6 +121,10 @@ class OcpStructure:
             self.offsets[name] = size
             size += int(np.prod(shape))
         self.shapes, self.size = shapes, size
+        self.block_slices = {
+            name: (self.offsets[name], int(np.prod(shape)), shape)
+            for name, shape in shapes.items()
+        }
         self._MapEntries(free, other, state, knot, step, copies)
         # Padded dynamics rows: identity on the padding so they solve.
         pad = np.ones((K, mD), dtype=bool)
@@ -222,9 +226,8 @@ class OcpStructure:
         self.p_fixed = (free[pr] != free[pc]) & ~other[pr] & ~other[pc]
 
     def _Blocks(self, buf):
+        """The padded blocks (views of ``buf``), by name."""
         return {
-            name: buf[off : off + int(np.prod(self.shapes[name]))].reshape(
-                self.shapes[name]
-            )
-            for name, off in self.offsets.items()
+            name: buf[off : off + size].reshape(shape)
+            for name, (off, size, shape) in self.block_slices.items()
         }
