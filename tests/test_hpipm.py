@@ -232,6 +232,22 @@ def test_auto_hands_wide_or_unstructured_qps_to_piqp(span_two_knots):
             np.testing.assert_allclose(z, zp, atol=1e-6)
 
 
+@needs_hpipm
+def test_auto_hands_a_qp_hpipm_did_not_solve_to_piqp():
+    """With one iteration allowed HPIPM's fast mode cannot solve the QP:
+    hpipm re-solves it in the balanced mode, auto with PIQP."""
+    piqp_settings = dict(PIQP_DEFAULT_SETTINGS)
+    for auto in (False, True):
+        extra = dict(piqp_settings=piqp_settings) if auto else {}
+        ws, p_values, q, args, _, _ = _TinyMpc(False, settings={"iter_max": 1}, **extra)
+        z, status, _ = ws.Solve(p_values, q, *args)
+        assert status == "solved"
+        assert (ws._piqp is not None) == auto
+        piqp, Values = _Piqp(ws, tolerance=None)
+        zp, _, _ = piqp.Solve(Values(p_values), q, *args)
+        np.testing.assert_allclose(z, zp, atol=1e-6)
+
+
 def test_a_missing_hpipm_says_what_to_install(monkeypatch):
     monkeypatch.setattr(importlib.util, "find_spec", lambda name: None)
     hpipm_library.Library.cache_clear()

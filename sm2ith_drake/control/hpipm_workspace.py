@@ -46,10 +46,11 @@ from sm2ith_drake.control.profiling import PROFILER
 # HPIPM's IPM settings (HPIPM's argument names) and ours.
 HPIPM_DEFAULT_SETTINGS = dict(
     mode="speed_abs",
-    # Measured on the benchmark: the fast mode solves in 18–19 iterations
-    # (p99 29, max 32) or stalls; a stalled QP goes to the balanced mode
-    # (at least 100 iterations) after this many.
-    iter_max=40,
+    # Measured on the benchmark: the fast mode solves in 18–22 iterations
+    # (p99 29 with 3 people, 40 with 3 + 7) or stalls; a stalled QP goes to
+    # the balanced mode (hpipm; at least 100 iterations) or to PIQP (auto)
+    # after this many.
+    iter_max=50,
     mu0=1e4,
     tol_stat=1e-6,
     tol_eq=1e-6,
@@ -129,14 +130,19 @@ class HpipmWorkspace:
                 if len(self._structures) >= 4:
                     self._structures.pop(next(iter(self._structures)))
                 self._structures[key] = structure
+            args = (q, a_values, x_lower, x_upper, lower, upper)
             if structure is _USE_PIQP:
                 piqp, order = self._Piqp()
-                return piqp.Solve(
-                    p_values[order], q, a_values, x_lower, x_upper, lower, upper
-                )
-            return structure.Solve(
-                p_values, q, a_values, x_lower, x_upper, lower, upper
-            )
+                return piqp.Solve(p_values[order], *args)
+            auto = self._piqp_settings is not None
+            z, status, iterations = structure.Solve(p_values, *args, retry=not auto)
+            if status != "solved" and auto:
+                # A QP HPIPM's fast mode did not solve (1–3 % with 3 + 7
+                # people): PIQP, cheaper than HPIPM's balanced mode.
+                piqp, order = self._Piqp()
+                z, status, more = piqp.Solve(p_values[order], *args)
+                iterations += more
+            return z, status, iterations
         except (ValueError, np.linalg.LinAlgError) as e:
             return None, f"qp error: {e}", 0
 
@@ -346,7 +352,9 @@ class _Structure(OcpStructure):
             np.concatenate(positions) if positions else np.zeros(0, int)
         )
 
-    def Solve(self, p_values, q, a_values, x_lower, x_upper, lower, upper):
+    def Solve(self, p_values, q, a_values, x_lower, x_upper, lower, upper, retry=True):
+        """``retry``: a QP the fast mode does not solve is re-solved in
+        the balanced mode."""
         ws, qp = self.ws, self.qp
         if np.any(x_lower[self.slacks] != 0):
             raise ValueError("a slack variable must have bounds [0, inf)")
@@ -405,7 +413,7 @@ class _Structure(OcpStructure):
         qp.SetFrom(self.set_calls)
         with PROFILER.Phase("hpipm_ipm"):
             status, iterations = qp.Solve()
-            if status != "solved":
+            if status != "solved" and retry:
                 # Rare (a cold start): the balanced mode, on the same data.
                 status, more = qp.Solve(robust=True)
                 iterations += more
