@@ -22,6 +22,14 @@ needs_hpipm = pytest.mark.skipif(
 )
 
 
+def _Crossing(name: str):
+    return LoadScenario(
+        filename=GetDiagramsDir() / "crossing.scenarios.yaml",
+        scenario_name=name,
+        scenario_text="{controller: {qp_solver: hpipm}}",
+    )
+
+
 def _Piqp(ws: HpipmWorkspace, tolerance: float | None = 1e-9):
     """A PIQP workspace on the same pattern, solving to ``tolerance`` (the
     reference: tighter than the controller's; None: the controller's own
@@ -77,11 +85,7 @@ def test_hpipm_solves_the_stage_qps_as_piqp_does(monkeypatch):
     optimal value, HPIPM's solution feasible; the plans agree to what the
     QPs' degeneracy allows. (PIQP at the controller's own tolerances lands
     up to ~2e-5 of the value further off than HPIPM.)"""
-    scenario = LoadScenario(
-        filename=GetDiagramsDir() / "crossing.scenarios.yaml",
-        scenario_name="crossing_stretch3_3h",
-        scenario_text="{controller: {qp_solver: hpipm}}",
-    )
+    scenario = _Crossing("crossing_stretch3_3h")
     compared = []
     solve = HpipmWorkspace.Solve
 
@@ -121,11 +125,7 @@ def test_hpipm_results_do_not_depend_on_earlier_solves(monkeypatch):
     """One workspace per pattern is reused: solving A, then B, then A again
     gives A's solution to the last bit (so a cloned Context reproduces a
     run)."""
-    scenario = LoadScenario(
-        filename=GetDiagramsDir() / "crossing.scenarios.yaml",
-        scenario_name="crossing_ridgeback_ur10_2h",
-        scenario_text="{controller: {qp_solver: hpipm}}",
-    )
+    scenario = _Crossing("crossing_ridgeback_ur10_2h")
     calls = []
     solve = HpipmWorkspace.Solve
 

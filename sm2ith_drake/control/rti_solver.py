@@ -124,22 +124,22 @@ class RtiStageSolver:
             prows.append(S.row)
             pcols.append(S.col)
         p_pattern = (np.concatenate(prows), np.concatenate(pcols))
+        pattern = dict(
+            num_variables=nv,
+            p_pattern=p_pattern,
+            a_pattern=a_pattern,
+            equality_rows=equality_rows,
+        )
         if self._qp_solver in ("hpipm", "auto"):
             qp = HpipmWorkspace(
-                num_variables=nv,
-                p_pattern=p_pattern,
-                a_pattern=a_pattern,
-                equality_rows=equality_rows,
+                **pattern,
                 settings=self._hpipm_settings,
                 roles=self.program.layout.Roles(),
                 piqp_settings=self._settings if self._qp_solver == "auto" else None,
             )
         else:
             qp = PiqpWorkspace(
-                num_variables=nv,
-                p_pattern=p_pattern,
-                a_pattern=a_pattern,
-                equality_rows=equality_rows,
+                **pattern,
                 settings=self._settings,
                 reuse_workspace=self._reuse_workspace,
             )
