@@ -102,6 +102,10 @@ class OcpStructure:
         self.soft_vars = [
             slack_of_row[g[s]] for g, s in zip(self.g_rows, self.soft, strict=True)
         ]
+        # The general rows that read the next knot's states (the DT-CBF's),
+        # the only ones the dynamics are substituted into: their positions
+        # in g_rows, per stage.
+        self.g_next = [np.nonzero(free_next[g])[0] for g in self.g_rows]
         bounded = x_lower_finite | x_upper_finite
         self.idxbx = [np.nonzero(bounded[x])[0] for x in states]
         self.idxbu = [np.nonzero(bounded[u])[0] for u in self.U]
@@ -111,11 +115,18 @@ class OcpStructure:
         mU = max(len(u) for u in self.U)
         mD = max(self.ns)
         mG = max(len(g) for g in self.g_rows)
+        mN = max(len(g) for g in self.g_next)
         shapes = dict(
             DN=(K, mD, mD), DX=(K, mD, mX), DU=(K, mD, mU), GX=(K, mG, mX),
-            GU=(K, mG, mU), GN=(K, mG, mD), Q=(K, mX, mX), R=(K, mU, mU),
+            GU=(K, mG, mU), GN=(K, mN, mD), Q=(K, mX, mX), R=(K, mU, mU),
             S=(K, mU, mX),
         )  # fmt: skip
+        # Where each GN row's substitution goes: (stage, slot) → row of GX.
+        ks = [np.full(len(g), k) for k, g in enumerate(self.g_next)]
+        slots = [np.arange(len(g)) for g in self.g_next]
+        self.next_stage = np.concatenate(ks)
+        self.next_slot = np.concatenate(slots)
+        self.next_row = np.concatenate(self.g_next)
         self.offsets, size = {}, 0
         for name, shape in shapes.items():
             self.offsets[name] = size
@@ -158,9 +169,11 @@ class OcpStructure:
             pos_u[self.U[k]] = np.arange(len(self.U[k]))
             pos_copy[k, copies[k]] = self.ns[k] + np.arange(len(copies[k]))
         row_local = np.full(ws.num_rows, -1)
+        next_local = np.full(ws.num_rows, -1)
         for k in range(N + 1):
             row_local[self.dyn_rows[k]] = np.arange(len(self.dyn_rows[k]))
             row_local[self.g_rows[k]] = np.arange(len(self.g_rows[k]))
+            next_local[self.g_rows[k][self.g_next[k]]] = np.arange(len(self.g_next[k]))
         r, c = ws.a_rows, ws.a_cols
         sel = (row_local[r] >= 0) & free[c] & ~other[c]
         k, i, col = step[r], row_local[r], c
@@ -183,7 +196,8 @@ class OcpStructure:
         for b, name in enumerate(names):
             m = sel & (block == b)
             _, rows, cols = self.shapes[name]
-            dest[m] = self.offsets[name] + (k[m] * rows + i[m]) * cols + j[m]
+            ii = next_local[r[m]] if name == "GN" else i[m]
+            dest[m] = self.offsets[name] + (k[m] * rows + ii) * cols + j[m]
         if np.any(dest[sel] < 0) or np.any(j[sel] < 0):
             raise ValueError("an entry of a row has no place in its stage")
         self.a_dest, self.a_ok = dest, sel

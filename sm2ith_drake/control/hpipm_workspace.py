@@ -391,11 +391,16 @@ class _Structure(OcpStructure):
         solved = np.linalg.solve(B["DN"], rhs)
         A_all, B_all = -solved[:, :, :mX], -solved[:, :, mX : mX + mU]
         b_all = solved[:, :, -1]
-        C_all = B["GX"] + B["GN"] @ A_all
-        D_all = B["GU"] + B["GN"] @ B_all
-        shift = np.einsum("kgd,kd->kg", B["GN"], b_all)
-        g_lo = lo[self.g_gather] - shift
-        g_hi = hi[self.g_gather] - shift
+        # Substituted into the rows that read the next knot's states.
+        k, slot, row = self.next_stage, self.next_slot, self.next_row
+        GN = B["GN"]
+        C_all, D_all = B["GX"].copy(), B["GU"].copy()
+        C_all[k, row] += (GN @ A_all)[k, slot]
+        D_all[k, row] += (GN @ B_all)[k, slot]
+        shift = np.einsum("kgd,kd->kg", GN, b_all)[k, slot]
+        g_lo, g_hi = lo[self.g_gather], hi[self.g_gather]
+        g_lo[k, row] -= shift
+        g_hi[k, row] -= shift
         if np.any(slack_coef[self.slacks] <= 0):
             raise ValueError("a slack must enter its row positively")
         # ½ P s² + c s with the row's slack sl = coef · s.
