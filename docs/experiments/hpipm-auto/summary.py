@@ -1,0 +1,50 @@
+"""The head-on study with HPIPM for the stage QPs (controller.qp_solver:
+auto) against the same study with PIQP (the default), SM²ITH, paired by
+variant, people model and seed (README, Benchmark).
+
+    python summary.py
+"""
+
+import csv
+from pathlib import Path
+
+import numpy as np
+from scipy.stats import bootstrap
+
+HERE = Path(__file__).parent
+BASE = HERE.parent / "proximal-6b4b50a" / "adversarial_default.csv"
+AUTO = HERE / "adversarial_auto.csv"
+
+
+def Load(path):
+    with open(path) as f:
+        return {
+            (r["variant"], r["people"], int(r["seed"])): r for r in csv.DictReader(f)
+        }
+
+
+def Ci(d):
+    if np.all(d == d[0]):
+        return f"{d.mean():+.3f} [{d[0]:+.3f}, {d[0]:+.3f}]"
+    c = bootstrap(
+        (d,), np.mean, n_resamples=10000, random_state=0, method="percentile"
+    ).confidence_interval
+    return f"{d.mean():+.3f} [{c.low:+.3f}, {c.high:+.3f}]"
+
+
+base, auto = Load(BASE), Load(AUTO)
+keys = sorted(set(base) & set(auto))
+print(f"paired runs: {len(keys)}")
+for column in ("success", "collision", "robot_closing_contact", "wall_collision"):
+    b = np.array([base[k][column] == "True" for k in keys], float)
+    a = np.array([auto[k][column] == "True" for k in keys], float)
+    print(f"{column}: piqp {int(b.sum())}, auto {int(a.sum())}, diff {Ci(a - b)}")
+for column in ("progress_share", "base_retreat", "time_to_goal", "min_human_gap"):
+    pairs = [(float(base[k][column]), float(auto[k][column])) for k in keys]
+    pairs = np.array([p for p in pairs if np.all(np.isfinite(p))])
+    print(
+        f"{column} (n={len(pairs)}): median piqp {np.median(pairs[:, 0]):.3f}, "
+        f"auto {np.median(pairs[:, 1]):.3f}, mean diff {Ci(pairs[:, 1] - pairs[:, 0])}"
+    )
+same = sum(base[k]["time_to_goal"] == auto[k]["time_to_goal"] for k in keys)
+print(f"runs with the same time to goal to the digit: {same} of {len(keys)}")
