@@ -43,6 +43,8 @@ class OcpStructure:
         off = pr != pc
         if np.any(other[pr[off]] | other[pc[off]]):
             raise ValueError("a slack variable has a coupling cost")
+        if np.any(np.bincount(r[other[c]], minlength=nr) > 1):
+            raise ValueError("a row holds more than one slack variable")
         slack_of_row = np.full(nr, -1)
         slack_of_row[r[other[c]]] = c[other[c]]
         # The step of every row: of the inputs it reads, else its first knot

@@ -135,7 +135,14 @@ class HpipmWorkspace:
                 piqp, order = self._Piqp()
                 return piqp.Solve(p_values[order], *args)
             auto = self._piqp_settings is not None
-            z, status, iterations = structure.Solve(p_values, *args, retry=not auto)
+            try:
+                z, status, iterations = structure.Solve(p_values, *args, retry=not auto)
+            except (ValueError, np.linalg.LinAlgError) as e:
+                if not auto:
+                    raise
+                # Values HPIPM's form cannot take (a singular dynamics
+                # block, a slack with a zero coefficient): PIQP.
+                z, status, iterations = None, f"qp error: {e}", 0
             if status != "solved" and auto:
                 # A QP HPIPM's fast mode did not solve (1–3 % with 3 + 7
                 # people): PIQP, cheaper than HPIPM's balanced mode.
