@@ -1,0 +1,113 @@
+"""The doorway measurements of 2026-11-25 (README, Doorway): paired
+differences (mean, 95 % bootstrap CI) of SM²ITH variants against the
+default controller and against CVMM and React on the same seeds.
+
+    python summary.py
+"""
+
+import csv
+from pathlib import Path
+
+import numpy as np
+from scipy.stats import bootstrap
+
+HERE = Path(__file__).parent
+EXPERIMENTS = HERE.parent
+
+
+def Rows(path, **match):
+    if not path.exists():
+        return []
+    with open(path) as f:
+        return [
+            r
+            for r in csv.DictReader(f)
+            if all(r[key] == value for key, value in match.items())
+        ]
+
+
+def Keyed(rows, *columns):
+    return {tuple(r[c] for c in columns): r for r in rows}
+
+
+def Ci(d):
+    if not len(d):
+        return "n/a"
+    if np.all(d == d[0]):
+        return f"{d.mean():+.2f} [{d[0]:+.2f}, {d[0]:+.2f}]"
+    c = bootstrap(
+        (d,), np.mean, n_resamples=10000, random_state=0, method="percentile"
+    ).confidence_interval
+    return f"{d.mean():+.2f} [{c.low:+.2f}, {c.high:+.2f}]"
+
+
+def Flags(rows, column):
+    return np.array([r[column] == "True" for r in rows], float)
+
+
+def Compare(label, new, old, columns):
+    keys = sorted(set(new) & set(old))
+    n, o = [new[k] for k in keys], [old[k] for k in keys]
+    line = f"{label} (n={len(keys)})"
+    for c in columns:
+        x, y = Flags(o, c), Flags(n, c)
+        line += f" | {c} {int(x.sum())}->{int(y.sum())} {Ci(y - x)}"
+    if keys:
+        gap = [min(float(r["min_human_gap"]) for r in rows) for rows in (o, n)]
+        line += f" | smallest gap {gap[0] * 1e3:.0f}->{gap[1] * 1e3:.0f} mm"
+    print(line)
+
+
+CONTACT = ["success", "collision", "robot_closing_contact", "wall_collision"]
+print("== Ridgeback-UR10 doorway, SM2ITH: multipliers undamped vs damped")
+for variant in ("paper", "safe"):
+    for people in ("instructed", "orca"):
+        match = dict(variant=variant, people=people)
+        new = Keyed(Rows(HERE / "ridgeback_undamped.csv", **match), "humans", "seed")
+        old = Keyed(Rows(HERE / "ridgeback_default.csv", **match), "humans", "seed")
+        Compare(f"{variant}/{people}", new, old, CONTACT)
+
+new = Keyed(
+    Rows(HERE / "ridgeback_undamped.csv"), "variant", "people", "humans", "seed"
+)
+old = Keyed(Rows(HERE / "ridgeback_default.csv"), "variant", "people", "humans", "seed")
+Compare("pooled", new, old, CONTACT)
+
+print("== Stretch 3 doorway, safe, instructed: SM2ITH variants vs 5d9d1e4")
+ref_rows = Rows(
+    EXPERIMENTS / "doorway-30-5d9d1e4" / "doorway.csv",
+    variant="safe",
+    people="instructed",
+)
+ref = {
+    m: Keyed([r for r in ref_rows if r["method"] == m], "humans", "seed")
+    for m in ("SM2ITH", "CVMM", "React")
+}
+rec_rows = Rows(
+    EXPERIMENTS / "recovery-b399eda" / "doorway.csv",
+    variant="safe",
+    people="instructed",
+)
+ref_rec = {
+    m: Keyed([r for r in rec_rows if r["method"] == m], "humans", "seed")
+    for m in ("CVMM", "React")
+}
+undamped = Keyed(
+    Rows(EXPERIMENTS / "proximal-6b4b50a" / "instructed_multipliers_undamped.csv"),
+    "humans",
+    "seed",
+)
+variants = [
+    ("robot_share 0.25", HERE / "share_0.25.csv", ref),
+    ("robot_share 0", HERE / "share_0.csv", ref),
+    ("undamped + recovery", HERE / "undamped_recovery.csv", {**ref, **ref_rec}),
+]
+for label, path, against in variants:
+    new = Keyed(Rows(path), "humans", "seed")
+    for h in sorted({k[0] for k in new}):
+        cell = {k: r for k, r in new.items() if k[0] == h}
+        arrivals = int(Flags(cell.values(), "success").sum())
+        print(f"-- {label}, {h} people: arrivals {arrivals} of {len(cell)}")
+        for m, old in against.items():
+            Compare(f"   vs {m}", cell, old, ["success"])
+        Compare("   vs SM2ITH undamped", cell, undamped, ["success", "collision"])
