@@ -100,6 +100,7 @@ undamped = Keyed(
 variants = [
     ("robot_share 0.25", HERE / "share_0.25.csv", ref),
     ("robot_share 0", HERE / "share_0.csv", ref),
+    # CVMM and React with the recovery too (b399eda); SM2ITH: 5d9d1e4's.
     ("undamped + recovery", HERE / "undamped_recovery.csv", {**ref, **ref_rec}),
 ]
 for label, path, against in variants:
