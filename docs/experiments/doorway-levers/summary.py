@@ -112,3 +112,7 @@ for label, path, against in variants:
         for m, old in against.items():
             Compare(f"   vs {m}", cell, old, ["success"])
         Compare("   vs SM2ITH undamped", cell, undamped, ["success", "collision"])
+    if len({k[0] for k in new}) > 1:
+        print(f"-- {label}, pooled over the people counts run")
+        for m, old in against.items():
+            Compare(f"   vs {m}", new, old, ["success"])
