@@ -9,7 +9,8 @@ import csv
 from pathlib import Path
 
 import numpy as np
-from scipy.stats import bootstrap
+
+from sm2ith_drake.experiments.statistics import PairedDifference
 
 HERE = Path(__file__).parent
 EXPERIMENTS = HERE.parent
@@ -31,14 +32,13 @@ def Keyed(rows, *columns):
 
 
 def Ci(d):
+    """Mean of the paired differences d with its 95 % bootstrap CI (the
+    package's own PairedDifference, as the study reports use)."""
+    d = np.asarray(d, dtype=float)
     if not len(d):
         return "n/a"
-    if np.all(d == d[0]):
-        return f"{d.mean():+.2f} [{d[0]:+.2f}, {d[0]:+.2f}]"
-    c = bootstrap(
-        (d,), np.mean, n_resamples=10000, random_state=0, method="percentile"
-    ).confidence_interval
-    return f"{d.mean():+.2f} [{c.low:+.2f}, {c.high:+.2f}]"
+    e = PairedDifference(d, np.zeros_like(d))
+    return f"{e.value:+.3f} [{e.low:+.3f}, {e.high:+.3f}]"
 
 
 def Flags(rows, column):

@@ -9,7 +9,8 @@ import csv
 from pathlib import Path
 
 import numpy as np
-from scipy.stats import bootstrap
+
+from sm2ith_drake.experiments.statistics import PairedDifference
 
 HERE = Path(__file__).parent
 BASE = HERE.parent / "proximal-6b4b50a" / "adversarial_default.csv"
@@ -24,12 +25,13 @@ def Load(path):
 
 
 def Ci(d):
-    if np.all(d == d[0]):
-        return f"{d.mean():+.3f} [{d[0]:+.3f}, {d[0]:+.3f}]"
-    c = bootstrap(
-        (d,), np.mean, n_resamples=10000, random_state=0, method="percentile"
-    ).confidence_interval
-    return f"{d.mean():+.3f} [{c.low:+.3f}, {c.high:+.3f}]"
+    """Mean of the paired differences d with its 95 % bootstrap CI (the
+    package's own PairedDifference, as the study reports use)."""
+    d = np.asarray(d, dtype=float)
+    if not len(d):
+        return "n/a"
+    e = PairedDifference(d, np.zeros_like(d))
+    return f"{e.value:+.3f} [{e.low:+.3f}, {e.high:+.3f}]"
 
 
 base, auto = Load(BASE), Load(AUTO)
