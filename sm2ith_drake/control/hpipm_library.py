@@ -185,14 +185,6 @@ class OcpQp:
         self.lib.d_ocp_qp_ipm_get_iter(ws, ctypes.byref(iterations))
         return STATUS.get(status.value, f"status {status.value}"), iterations.value
 
-    def Get(self, field: str, stage: int, size: int) -> np.ndarray:
-        """A solution vector ("x", "u", "sl", ...) of one stage."""
-        out = np.zeros(max(size, 1))
-        self.GetInto(
-            [(self.lib.d_ocp_qp_sol_get, field.encode(), stage, out.ctypes.data)]
-        )
-        return out[:size]
-
     def GetInto(self, calls) -> None:
         """Solution vectors into caller-kept arrays: (getter, field, stage,
         address) with getter = lib.d_ocp_qp_sol_get."""

@@ -107,6 +107,8 @@ class HpipmWorkspace:
         diag = np.arange(self.n)
         pairs = np.unique(np.concatenate([pairs, np.stack([diag, diag], 1)]), axis=0)
         self._p_rows, self._p_cols = pairs[:, 0], pairs[:, 1]
+        self.p_diagonal = self._p_rows == self._p_cols
+        self.p_diag_index = self._p_rows[self.p_diagonal]
         self.a_rows, self.a_cols = (np.asarray(a, dtype=int) for a in a_pattern)
         self.num_rows = int(self.a_rows.max()) + 1 if self.a_rows.size else 0
         self.equality = np.zeros(self.num_rows, dtype=bool)
@@ -128,7 +130,7 @@ class HpipmWorkspace:
             structure = self._structures.get(key)
             if structure is None:
                 with PROFILER.Phase("hpipm_structure"):
-                    structure = self._Structure(pinned, finite)
+                    structure = self._Build(pinned, finite)
                 if len(self._structures) >= 4:
                     self._structures.pop(next(iter(self._structures)))
                 self._structures[key] = structure
@@ -155,7 +157,8 @@ class HpipmWorkspace:
         except (ValueError, np.linalg.LinAlgError) as e:
             return None, f"qp error: {e}", 0
 
-    def _Structure(self, pinned, finite):
+    def _Build(self, pinned, finite):
+        """The structure of a new pattern, or _USE_PIQP (auto)."""
         auto = self._piqp_settings is not None
         try:
             structure = OcpStructure(self, pinned, finite)
@@ -242,9 +245,11 @@ class _Structure(OcpStructure):
             S=K * mU * mX, C=K * mG * mX, D=K * mG * mU, lg=K * mG, ug=K * mG,
             q=n, lb=n, ub=n, Zl=n, zl=n,
         )  # fmt: skip
-        entries = []  # (field, stage, source, indices into it, F order)
+        # (field, stage, source, indices into the source in HPIPM's
+        # column-major order; sizes[source] and + 1 stand for 0 and 1).
+        entries = []
 
-        def Block(source, k, rows, cols, m1, m2):
+        def Block(k, rows, cols, m1, m2):
             i, j = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
             return ((k * m1 + i) * m2 + j).ravel(order="F")
 
@@ -259,29 +264,28 @@ class _Structure(OcpStructure):
             nG = len(self.g_rows[k])
             if k < N:
                 nD, nX1 = self.ns[k + 1], len(self.X[k + 1])
-                zero, one = sizes["A"], sizes["A"] + 1
                 if nX:
-                    M = np.full((nX1, nX), zero)
-                    M[:nD] = Block("A", k, nD, nX, mD, mX).reshape((nD, nX), order="F")
+                    M = np.full((nX1, nX), sizes["A"])
+                    M[:nD] = Block(k, nD, nX, mD, mX).reshape((nD, nX), order="F")
                     entries.append(("A", k, "A", M.ravel(order="F")))
                 zero, one = sizes["B"], sizes["B"] + 1
                 M = np.full((nX1, nU), zero)
-                M[:nD] = Block("B", k, nD, nU, mD, mU).reshape((nD, nU), order="F")
+                M[:nD] = Block(k, nD, nU, mD, mU).reshape((nD, nU), order="F")
                 M[nD + np.arange(nX1 - nD), self.copy_pos[k]] = one
                 entries.append(("B", k, "B", M.ravel(order="F")))
                 v = np.full(nX1, sizes["b"])
                 v[:nD] = k * mD + np.arange(nD)
                 entries.append(("b", k, "b", v))
             if nX:
-                entries.append(("Q", k, "Q", Block("Q", k, nX, nX, mX, mX)))
+                entries.append(("Q", k, "Q", Block(k, nX, nX, mX, mX)))
                 v = np.full(nX, sizes["q"])
                 v[:ns] = X[:ns]
                 entries.append(("q", k, "q", v))
             if nU:
-                entries.append(("R", k, "R", Block("R", k, nU, nU, mU, mU)))
+                entries.append(("R", k, "R", Block(k, nU, nU, mU, mU)))
                 entries.append(("r", k, "q", U))
                 if nX:
-                    entries.append(("S", k, "S", Block("S", k, nU, nX, mU, mX)))
+                    entries.append(("S", k, "S", Block(k, nU, nX, mU, mX)))
             for name, idx, v in (
                 ("x", self.idxbx[k], states[k]),
                 ("u", self.idxbu[k], U),
@@ -291,9 +295,9 @@ class _Structure(OcpStructure):
                     entries.append(("ub" + name, k, "ub", v[idx]))
             if nG:
                 if nX:
-                    entries.append(("C", k, "C", Block("C", k, nG, nX, mG, mX)))
+                    entries.append(("C", k, "C", Block(k, nG, nX, mG, mX)))
                 if nU:
-                    entries.append(("D", k, "D", Block("D", k, nG, nU, mG, mU)))
+                    entries.append(("D", k, "D", Block(k, nG, nU, mG, mU)))
                 entries.append(("lg", k, "lg", k * mG + np.arange(nG)))
                 entries.append(("ug", k, "ug", k * mG + np.arange(nG)))
             if len(self.soft[k]):
@@ -390,8 +394,7 @@ class _Structure(OcpStructure):
         lin += np.bincount(pr[pf], p_values[pf] * fixed_values[pc[pf]], minlength=ws.n)
         lin += np.bincount(pc[pf], p_values[pf] * fixed_values[pr[pf]], minlength=ws.n)
         p_diag = np.zeros(ws.n)
-        d = pr == pc
-        p_diag[pr[d]] = p_values[d]
+        p_diag[ws.p_diag_index] = p_values[ws.p_diagonal]
         # Dynamics of all steps at once: x⁺ = A x + B u + b.
         mX, mU = B["DX"].shape[2], B["DU"].shape[2]
         rhs = np.concatenate(

@@ -59,6 +59,7 @@ def Compare(label, new, old, columns):
 
 
 CONTACT = ["success", "collision", "robot_closing_contact", "wall_collision"]
+METHODS = ("SM2ITH", "CVMM", "React")
 print("== Ridgeback-UR10 doorway, SM2ITH: multipliers undamped vs damped")
 for variant in ("paper", "safe"):
     for people in ("instructed", "orca"):
@@ -74,24 +75,20 @@ old = Keyed(Rows(HERE / "ridgeback_default.csv"), "variant", "people", "humans",
 Compare("pooled", new, old, CONTACT)
 
 print("== Stretch 3 doorway, safe, instructed: SM2ITH variants vs 5d9d1e4")
-ref_rows = Rows(
-    EXPERIMENTS / "doorway-30-5d9d1e4" / "doorway.csv",
-    variant="safe",
-    people="instructed",
-)
-ref = {
-    m: Keyed([r for r in ref_rows if r["method"] == m], "humans", "seed")
-    for m in ("SM2ITH", "CVMM", "React")
-}
-rec_rows = Rows(
-    EXPERIMENTS / "recovery-b399eda" / "doorway.csv",
-    variant="safe",
-    people="instructed",
-)
-ref_rec = {
-    m: Keyed([r for r in rec_rows if r["method"] == m], "humans", "seed")
-    for m in ("CVMM", "React")
-}
+
+
+def ByMethod(path, methods):
+    """The `safe` instructed rows of a study CSV, per method, by (humans,
+    seed)."""
+    rows = Rows(path, variant="safe", people="instructed")
+    return {
+        m: Keyed([r for r in rows if r["method"] == m], "humans", "seed")
+        for m in methods
+    }
+
+
+ref = ByMethod(EXPERIMENTS / "doorway-30-5d9d1e4" / "doorway.csv", METHODS)
+ref_rec = ByMethod(EXPERIMENTS / "recovery-b399eda" / "doorway.csv", METHODS[1:])
 undamped = Keyed(
     Rows(EXPERIMENTS / "proximal-6b4b50a" / "instructed_multipliers_undamped.csv"),
     "humans",
