@@ -13,6 +13,7 @@ from pydrake.solvers import SolverOptions
 from pydrake.systems.analysis import SimulatorConfig
 
 from sm2ith_drake.scenario_hardware import HardwareConfig
+from sm2ith_drake.scenario_options import ReciprocityConfig, RecoveryConfig
 
 TASK_KINDS = (
     "ee_position",
@@ -71,32 +72,6 @@ class TaskConfig:
     # point ahead moves with both. Measured on the doorway (Stretch 3, 0.15
     # m, every method): fewer arrivals for SM²ITH and CVMM (README, Doorway).
     offset: float = 0.0
-
-
-@dataclass
-class RecoveryConfig:
-    """The way out of a stall (control/recovery.py, not in the paper): when
-    the base has come less than ``stall_distance`` nearer its target in
-    ``stall_time`` (standing, or edging back and forth), more than
-    ``goal_tolerance`` from it, and nobody within
-    ``people_distance`` moves faster than ``people_speed``, the robot drives
-    a route for its whole outline (control/route.py: back off, turn, come
-    at the door straight) with its arm held, until the rest of the route is
-    a drive ahead; then the MPC takes over again. Standing people are kept
-    ``clearance`` away like walls; anyone moving near ends it, as do
-    ``max_time`` seconds and a step the barriers would refuse."""
-
-    enabled: bool = False
-    stall_time: float = 3.0
-    stall_distance: float = 0.05
-    goal_tolerance: float = 0.3
-    people_distance: float = 1.5
-    people_speed: float = 0.25
-    # Kept from walls and standing people, on top of safety.obstacle_margin (m).
-    clearance: float = 0.02
-    max_time: float = 20.0
-    # Speeds while driving the route (fractions of the robot's limits).
-    speed_fraction: float = 0.5
 
 
 @dataclass
@@ -247,6 +222,8 @@ class PredictionConfig:
     tau_obs: float = 0.5
     # Share of the avoidance a human takes toward the robot (0.5: reciprocal).
     robot_share: float = 0.5
+    # That share estimated per person from how they moved (not in the paper).
+    reciprocity: ReciprocityConfig = field(default_factory=ReciprocityConfig)
     # Human limits in the prediction model.
     max_speed: float = 1.5
     max_acceleration: float = 2.0

@@ -3,6 +3,7 @@ cloned Context reproduces the run, and one Diagram (one HierarchicalMpc and
 HumanPredictor instance) serves several Contexts at once."""
 
 import numpy as np
+import pytest
 from pydrake.systems.analysis import Simulator
 
 from sm2ith_drake.diagrams.simulation import MakeSimulation
@@ -10,9 +11,11 @@ from sm2ith_drake.resources import GetDiagramsDir
 from sm2ith_drake.scenario_loader import LoadScenario
 
 
-def _Diagram(name="crossing_ridgeback_ur10_3h"):
+def _Diagram(name="crossing_ridgeback_ur10_3h", scenario_text="{}"):
     scenario = LoadScenario(
-        filename=GetDiagramsDir() / "crossing.scenarios.yaml", scenario_name=name
+        filename=GetDiagramsDir() / "crossing.scenarios.yaml",
+        scenario_name=name,
+        scenario_text=scenario_text,
     )
     return MakeSimulation(scenario=scenario)
 
@@ -67,10 +70,16 @@ def test_a_cloned_context_reproduces_the_run():
     assert all(r.mode == "solved" for r in log.records)
 
 
-def test_one_diagram_serves_two_contexts_interleaved():
+@pytest.mark.parametrize("reciprocity", [False, True])
+def test_one_diagram_serves_two_contexts_interleaved(reciprocity):
     """Two runs from different robot starts, stepped alternately through the
-    same systems, each match the same run done alone."""
-    diagram = _Diagram()
+    same systems, each match the same run done alone; also with the people's
+    shares of the avoidance estimated online (evidence in the Context, the
+    shares handed to the controller's KKT model with every prediction)."""
+    enabled = "true" if reciprocity else "false"
+    diagram = _Diagram(
+        scenario_text=f"{{prediction: {{reciprocity: {{enabled: {enabled}}}}}}}"
+    )
     robot = diagram.GetSubsystemByName("robot")
     contexts = []
     for dy in (0.0, 0.4):
@@ -97,6 +106,17 @@ def test_one_diagram_serves_two_contexts_interleaved():
     a, _ = _Commands(diagram, solo[0].get_context())
     b, _ = _Commands(diagram, solo[1].get_context())
     assert not np.array_equal(a, b)
+    if reciprocity:
+        predictor = diagram.GetSubsystemByName("human_predictor")
+        shares = [
+            predictor.GetPredictorState(
+                predictor.GetMyContextFromRoot(s.get_context())
+            ).last_prediction.robot_shares
+            for s in solo
+        ]
+        # The estimates moved off the prior, differently in the two runs.
+        assert np.any(np.abs(shares[0] - 0.5) > 0.01)
+        assert not np.allclose(shares[0], shares[1])
 
 
 def test_the_diagram_chains_estimator_predictor_controller():

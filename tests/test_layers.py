@@ -20,7 +20,13 @@ LAYERS = [
     ("robots", ["robots"]),
     (
         "scenario",
-        ["scenario", "scenario_hardware", "scenario_checks", "scenario_loader"],
+        [
+            "scenario",
+            "scenario_hardware",
+            "scenario_options",
+            "scenario_checks",
+            "scenario_loader",
+        ],
     ),
     ("humans", ["humans"]),  # world models and the messages
     ("control", ["control"]),  # the math of the controller

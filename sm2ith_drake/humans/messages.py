@@ -102,6 +102,13 @@ class HumanPrediction:
     guard_steps_by_id: dict = field(default_factory=dict)
     # The estimate the prediction was made from (every tracked person).
     estimate: HumanEstimate = field(default_factory=HumanEstimate)
+    # The ORCA model's share of the avoidance toward the robot per slot (H,)
+    # (PredictionConfig.robot_share, or its online estimate), None for the
+    # other models; the evidence for the estimate by id ((Σ w·s, Σ w),
+    # remembered) and the robot's (q, ν) the prediction was made at.
+    robot_shares: np.ndarray | None = None
+    share_evidence: dict = field(default_factory=dict)
+    robot_state: tuple | None = None
     # Wall time spent making this prediction (s): part of the control step's
     # time (the controller adds it to its StepRecord and its time budget).
     compute_time: float = 0.0

@@ -144,6 +144,8 @@ class OrcaKkt(Predictor):
     def SetPrediction(self, prediction: HumanPrediction) -> None:
         super().SetPrediction(prediction)
         self._warm_start = prediction
+        # The shares the prediction was made with (None: robot_share).
+        self.model.SetRobotShares(prediction.robot_shares)
         neighbors = np.asarray(prediction.neighbors, dtype=int).reshape(
             self.num_slots, self.num_neighbors
         )

@@ -54,8 +54,29 @@ class OrcaModel:
         # Combined radii (the nearest body's is set per person and step).
         self._radius = np.full(self.num_agent_lines, 2 * self.human_radius)
         self._radius[K] = self.human_radius + self.robot_radius
-        self._share = np.full(self.num_agent_lines, 0.5)
-        self._share[K:] = config.robot_share
+        # Each person's share of the avoidance of each line's other agent:
+        # half toward people, robot_share (or its estimate) toward the robot.
+        self._share = np.full((H, self.num_agent_lines), 0.5)
+        self._share[:, K:] = config.robot_share
+
+    @property
+    def robot_shares(self) -> np.ndarray:
+        """(H,) each slot's share of the avoidance toward the robot."""
+        return self._share[:, -1].copy()
+
+    def SetRobotShares(self, shares) -> None:
+        """Sets each slot's share of the avoidance toward the robot (H,);
+        None: ``config.robot_share`` for every slot."""
+        if shares is None:
+            shares = np.full(self.num_slots, self.config.robot_share)
+        self._share[:, self.num_neighbors :] = np.asarray(shares, dtype=float)[:, None]
+
+    def Shares(self, robot_share: float) -> np.ndarray:
+        """(H, A) the lines' shares with every slot taking ``robot_share``
+        of the avoidance toward the robot."""
+        share = self._share.copy()
+        share[:, self.num_neighbors :] = robot_share
+        return share
 
     def RobotView(self, q, nu, kin=None) -> RobotView:
         """The robot as the people see it at the configurations q (T, n) and
@@ -103,15 +124,16 @@ class OrcaModel:
         )
         return states, radius, body
 
-    def AgentLines(self, own_p, own_v, other_p, other_v, radius):
-        """ORCA agent half-planes (n, ρ) of the given states (AgentStates)."""
+    def AgentLines(self, own_p, own_v, other_p, other_v, radius, share=None):
+        """ORCA agent half-planes (n, ρ) of the given states (AgentStates);
+        ``share`` (H, A) overrides the lines' shares (Shares)."""
         return orca_agent_half_planes(
             own_p,
             own_v,
             other_p,
             other_v,
             radius,
-            self._share,
+            self._share if share is None else share,
             tau=self.config.tau,
             time_step=self.dt,
         )

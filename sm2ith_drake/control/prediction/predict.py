@@ -23,6 +23,11 @@ from sm2ith_drake.control.prediction.base import (
 )
 from sm2ith_drake.control.prediction.intent import SteerAroundWalls
 from sm2ith_drake.control.prediction.orca_model import OrcaModel
+from sm2ith_drake.control.prediction.reciprocity import (
+    EstimatedShares,
+    ShareObservations,
+    UpdateEvidence,
+)
 from sm2ith_drake.control.prediction.slots import (
     AssignSlots,
     DefaultNeighbors,
@@ -70,6 +75,7 @@ class HumanPredictorModel:
         tau = config.preferred_velocity_time_constant
         self._alpha = 1.0 if tau <= 0 else control_period / (tau + control_period)
         self.control_period = control_period
+        self._share_decay = float(np.exp(-control_period / config.reciprocity.memory))
         self.guard_deviation = float(guard_deviation)
         self.guard_gap = float(guard_gap)
         self.human_radius = float(human_radius)
@@ -144,7 +150,8 @@ class HumanPredictorModel:
                 lookahead=self.N * self.dt,
             )
         neighbors = state.neighbors
-        actions = multipliers = None
+        actions = multipliers = shares = None
+        evidence = {}
         if cfg.predictor == "cvmm":
             positions = ConstantVelocityPrediction(slots.p0, slots.v0, self.N, self.dt)
         else:
@@ -156,6 +163,8 @@ class HumanPredictorModel:
                 horizon_time=self.N * self.dt,
                 hysteresis=cfg.neighbor_hysteresis,
             )
+            evidence, shares = self._RobotShares(state, estimate, slots)
+            self.orca.SetRobotShares(shares)
             robot = self._RobotTrajectory(q0, nu0, warm_start_inputs)
             if robot is not None:
                 with PROFILER.Phase("predictor_forward_sim"):
@@ -194,9 +203,32 @@ class HumanPredictorModel:
             guarded=guarded & slots.active,
             guard_steps_by_id=guards,
             estimate=estimate if estimate is not None else HumanEstimate(),
+            robot_shares=shares,
+            share_evidence=evidence,
+            robot_state=_RobotState(q0, nu0),
         )
         prediction.compute_time = time.perf_counter() - start
         return prediction, NextState(prediction)
+
+    def _RobotShares(self, state, estimate, slots):
+        """The evidence on each person's share of the avoidance toward the
+        robot after this step, and each slot's share (reciprocity.py; the
+        configured robot_share for everyone without the estimate)."""
+        cfg = self.config
+        r = cfg.reciprocity
+        if not r.enabled:
+            return {}, np.full(self.num_slots, cfg.robot_share)
+        observations = ShareObservations(
+            self.orca, state.last_prediction, estimate, r.min_difference
+        )
+        ids = () if estimate is None else estimate.ids
+        evidence = UpdateEvidence(
+            state.share_evidence, observations, ids, self._share_decay
+        )
+        shares = EstimatedShares(
+            evidence, slots.slot_ids, cfg.robot_share, r.prior_weight
+        )
+        return evidence, shares
 
     def _Distances(self, estimate, q0):
         """Each estimate entry's distance from the robot's nearest body at
@@ -231,14 +263,21 @@ class HumanPredictorModel:
 
     def _RobotTrajectory(self, q0, nu0, inputs):
         """The RobotView of the robot's warm start, or None."""
-        if q0 is None or nu0 is None or inputs is None:
+        state = _RobotState(q0, nu0)
+        if state is None or inputs is None:
             return None
-        q0 = np.asarray(q0, dtype=float)
-        nu0 = np.asarray(nu0, dtype=float)
-        if not (np.all(np.isfinite(q0)) and np.all(np.isfinite(nu0))):
-            return None
-        q, nu, _ = Rollout(self.robot, q0, nu0, inputs, self.dt)
+        q, nu, _ = Rollout(self.robot, *state, inputs, self.dt)
         return self.orca.RobotView(q[:-1], nu[:-1])
+
+
+def _RobotState(q0, nu0):
+    """(q, ν) as copies, or None if either is missing or not finite."""
+    if q0 is None or nu0 is None:
+        return None
+    q, nu = np.array(q0, dtype=float), np.array(nu0, dtype=float)
+    if not (np.all(np.isfinite(q)) and np.all(np.isfinite(nu))):
+        return None
+    return q, nu
 
 
 def NextState(prediction: HumanPrediction) -> PredictorState:
@@ -248,5 +287,6 @@ def NextState(prediction: HumanPrediction) -> PredictorState:
         neighbors=np.array(prediction.neighbors),
         preferred_velocities=dict(prediction.preferred_by_id),
         guard_steps=dict(prediction.guard_steps_by_id),
+        share_evidence=dict(prediction.share_evidence),
         last_prediction=prediction,
     )

@@ -48,6 +48,9 @@ class PredictorState:
     preferred_velocities: dict = field(default_factory=dict)
     # Control steps each guarded human stays guarded, by id.
     guard_steps: dict = field(default_factory=dict)
+    # The evidence on each person's share of the avoidance toward the robot,
+    # by id: (Σ w·s, Σ w) (control/prediction/reciprocity.py).
+    share_evidence: dict = field(default_factory=dict)
     # The last prediction made (for drawing; not used to predict).
     last_prediction: object = None
 
