@@ -94,11 +94,23 @@ undamped = Keyed(
     "humans",
     "seed",
 )
+undamped_recovery = Keyed(Rows(HERE / "undamped_recovery.csv"), "humans", "seed")
+with_recovery = {**ref, **ref_rec, "SM2ITH undamped + recovery": undamped_recovery}
 variants = [
     ("robot_share 0.25", HERE / "share_0.25.csv", ref),
     ("robot_share 0", HERE / "share_0.csv", ref),
     # CVMM and React with the recovery too (b399eda); SM2ITH: 5d9d1e4's.
     ("undamped + recovery", HERE / "undamped_recovery.csv", {**ref, **ref_rec}),
+    (
+        "robot_share 0 + undamped + recovery",
+        HERE / "share_0_undamped_recovery.csv",
+        with_recovery,
+    ),
+    (
+        "reciprocity + undamped + recovery",
+        HERE / "reciprocity_undamped_recovery.csv",
+        with_recovery,
+    ),
 ]
 for label, path, against in variants:
     new = Keyed(Rows(path), "humans", "seed")
