@@ -269,7 +269,7 @@ def _ValidatePeople(scenario: Scenario) -> None:
             f"prediction.robot_share must be in [0, 1], got {pr.robot_share}"
         )
     _Positive(pr.reciprocity.memory, "prediction.reciprocity.memory")
-    for name in ("prior_weight", "min_difference"):
+    for name in ("prior_weight", "min_difference", "max_share"):
         _NonNegative(getattr(pr.reciprocity, name), f"prediction.reciprocity.{name}")
     s = scenario.safety
     if not 0 < s.gamma <= 1:

@@ -44,9 +44,13 @@ class ReciprocityConfig:
     estimate is the weighted mean of the observations, forgotten with the
     time constant ``memory`` (s), and of ``prediction.robot_share``, which
     counts as ``prior_weight`` ((m/s)²) of evidence. A person about whom
-    nothing is known yet is predicted with ``prediction.robot_share``."""
+    nothing is known yet is predicted with ``prediction.robot_share``.
+    Observations are capped at ``max_share``: people who walk blind to the
+    robot and then step aside wholly when it is close would otherwise be
+    predicted to give way more than ORCA's half, early."""
 
     enabled: bool = False
     memory: float = 4.0
     prior_weight: float = 0.1
     min_difference: float = 0.1
+    max_share: float = 1.0

@@ -76,6 +76,16 @@ def test_one_step_recovers_the_share_the_person_moved_with(true_share):
     assert second.robot_shares[0] == pytest.approx(true_share, abs=1e-3)
 
 
+def test_observations_are_capped_at_max_share():
+    """A person who steps aside wholly counts as max_share, no more."""
+    robot, model = _Model(prior_weight=0.0, max_share=0.5)
+    p, v = np.array([2.2, 0.15]), np.array([-1.0, 0.0])
+    first, state = _Predict(robot, model, model.InitialState(), p, v)
+    a = _OrcaAction(model, first, 1.0)
+    second, _ = _Predict(robot, model, state, p + DT * a, a)
+    assert second.robot_shares[0] == pytest.approx(0.5)
+
+
 def test_a_person_who_walks_on_is_predicted_to_walk_on():
     """Walking straight at the robot, step after step, drives the estimate
     from the prior toward 0; a person who yields as ORCA does keeps ≈ 0.5."""

@@ -219,7 +219,7 @@ class HumanPredictorModel:
         if not r.enabled:
             return {}, np.full(self.num_slots, cfg.robot_share)
         observations = ShareObservations(
-            self.orca, state.last_prediction, estimate, r.min_difference
+            self.orca, state.last_prediction, estimate, r.min_difference, r.max_share
         )
         ids = () if estimate is None else estimate.ids
         evidence = UpdateEvidence(

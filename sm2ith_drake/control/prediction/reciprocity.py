@@ -15,8 +15,8 @@ step and is measured now:
   the robot where it was then) is solved with s = 0 and s = 1;
 - where ‖a(1) − a(0)‖ ≥ ``min_difference`` (the robot mattered to the
   person then), the measured velocity's projection on that segment,
-  s = (v_now − a(0))·d / ‖d‖² clipped to [0, 1] with d = a(1) − a(0), is
-  one observation, weighted w = ‖d‖²;
+  s = (v_now − a(0))·d / ‖d‖² clipped to [0, ``max_share``] with
+  d = a(1) − a(0), is one observation, weighted w = ‖d‖²;
 - the evidence (Σ w·s, Σ w) decays by exp(−period / ``memory``) per step,
   and the estimate is (w₀ s₀ + Σ w·s) / (w₀ + Σ w), with s₀ =
   ``robot_share`` and w₀ = ``prior_weight``.
@@ -43,11 +43,16 @@ def _Measured(estimate: HumanEstimate | None) -> dict:
 
 
 def ShareObservations(
-    model, last: HumanPrediction | None, estimate: HumanEstimate | None, min_difference
+    model,
+    last: HumanPrediction | None,
+    estimate: HumanEstimate | None,
+    min_difference: float,
+    max_share: float = 1.0,
 ) -> dict:
-    """The observations {id: (s, w)} this step gives (module doc): ``model``
-    is the OrcaModel, ``last`` the prediction made one control step ago
-    (with its ``robot_state``), ``estimate`` the people measured now."""
+    """The observations {id: (s, w)} this step gives (module doc), s capped
+    at ``max_share``: ``model`` is the OrcaModel, ``last`` the prediction
+    made one control step ago (with its ``robot_state``), ``estimate`` the
+    people measured now."""
     if last is None or last.robot_state is None or last.robot_shares is None:
         return {}
     measured = _Measured(estimate)
@@ -89,7 +94,8 @@ def ShareObservations(
     out = {}
     for b, j in enumerate(slots):
         if weight[b] >= min_difference**2:
-            s = float(np.clip((now[b] - a0[b]) @ d[b] / weight[b], 0.0, 1.0))
+            s = (now[b] - a0[b]) @ d[b] / weight[b]
+            s = float(np.clip(s, 0.0, min(max_share, 1.0)))
             out[int(last.slot_ids[j])] = (s, float(weight[b]))
     return out
 
