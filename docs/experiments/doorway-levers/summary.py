@@ -111,6 +111,11 @@ variants = [
         HERE / "reciprocity_undamped_recovery.csv",
         with_recovery,
     ),
+    (
+        "reciprocity (max_share 0.5) + undamped + recovery",
+        HERE / "reciprocity_capped_undamped_recovery.csv",
+        with_recovery,
+    ),
 ]
 for label, path, against in variants:
     new = Keyed(Rows(path), "humans", "seed")
@@ -125,3 +130,24 @@ for label, path, against in variants:
         print(f"-- {label}, pooled over the people counts run")
         for m, old in against.items():
             Compare(f"   vs {m}", new, old, ["success"])
+
+print("== Stretch 3 doorway, safe, ORCA people, 3 people: SM2ITH undamped + recovery")
+orca = Keyed(Rows(HERE / "orca_undamped_recovery.csv"), "humans", "seed")
+ref_orca = Keyed(
+    Rows(
+        EXPERIMENTS / "doorway-30-d1bef7f" / "doorway.csv",
+        variant="safe",
+        people="orca",
+        method="SM2ITH",
+    ),
+    "humans",
+    "seed",
+)
+Compare("undamped + recovery vs default (d1bef7f)", orca, ref_orca, CONTACT)
+for label, name in [
+    ("reciprocity", "orca_reciprocity_undamped_recovery.csv"),
+    ("robot_share 0", "orca_share_0_undamped_recovery.csv"),
+]:
+    new = Keyed(Rows(HERE / name), "humans", "seed")
+    if new:
+        Compare(f"{label} + undamped + recovery vs without", new, orca, CONTACT)
