@@ -151,3 +151,17 @@ for label, name in [
     new = Keyed(Rows(HERE / name), "humans", "seed")
     if new:
         Compare(f"{label} + undamped + recovery vs without", new, orca, CONTACT)
+
+print("== Stretch 3 head-on (adversarial) study, SM2ITH: robot_share 0 vs 0.5")
+headon = ["variant", "people", "seed"]
+share0 = Keyed(Rows(HERE / "headon_share_0_undamped.csv"), *headon)
+half = Keyed(
+    Rows(EXPERIMENTS / "proximal-6b4b50a" / "adversarial_multipliers_undamped.csv"),
+    *headon,
+)
+Compare("both undamped, all variants and people", share0, half, CONTACT)
+keys = sorted(set(share0) & set(half))
+for column in ("progress_share", "base_retreat", "time_to_goal"):
+    pairs = np.array([[float(half[k][column]), float(share0[k][column])] for k in keys])
+    pairs = pairs[np.all(np.isfinite(pairs), axis=1)]
+    print(f"   {column} (n={len(pairs)}): {Ci(pairs[:, 1] - pairs[:, 0])}")
