@@ -4,6 +4,7 @@ robot (control/prediction/reciprocity.py, prediction.reciprocity)."""
 import numpy as np
 import pytest
 
+from sm2ith_drake.control.prediction.orca_kkt import OrcaKkt
 from sm2ith_drake.control.prediction.predict import HumanPredictorModel
 from sm2ith_drake.humans.messages import HumanEstimate
 from sm2ith_drake.robots import MobileManipulator
@@ -118,6 +119,10 @@ def test_the_estimate_is_forgotten_and_reaches_the_kkt_model():
         p = p + DT * v
     low = prediction.robot_shares[0]
     assert low < 0.2
+    # The controller's KKT model predicts with the prediction's shares.
+    kkt = OrcaKkt(model.config, horizon=N, time_step=DT, robot=robot)
+    kkt.SetPrediction(prediction)
+    np.testing.assert_array_equal(kkt.model.robot_shares, [low])
     # Walking away from the robot: nothing to observe, the evidence decays.
     away = np.array([1.0, 0.0])
     far = np.array([8.0, 5.0])
