@@ -343,6 +343,14 @@ class SafetyConfig:
     # people and walls; walls must outrank people (README, Doorway).
     human_slack_weight: float = 1e4
     obstacle_slack_weight: float = 1e6
+    # The barrier rows where the plan is already inside a barrier's margin
+    # (h_k < 0 at the linearization point), which only plans that need
+    # slack reach: "decay" keeps the paper's row h_{k+1} ≥ (1 − γ) h_k
+    # there too, so a plan that is inside pays per step only for going
+    # deeper faster than the decay (a squeezed plan may sweep an arm
+    # through a person's margin); "exit" asks h_{k+1} ≥ 0, so the slack
+    # paid is the depth at every step (README, Doorway).
+    inside_barrier: str = "decay"
 
 
 @dataclass

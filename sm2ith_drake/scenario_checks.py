@@ -75,6 +75,11 @@ def _NonNegative(value, name: str) -> None:
         raise ScenarioError(f"{name} must be ≥ 0, got {value}")
 
 
+def _OneOf(value, choices: tuple, name: str) -> None:
+    if value not in choices:
+        raise ScenarioError(f"{name} must be {'|'.join(choices)}: {value!r}")
+
+
 def _Point(value, name: str) -> None:
     if len(value) != 2:
         raise ScenarioError(f"{name} must be an [x, y] pair, got {list(value)}")
@@ -148,14 +153,9 @@ def _ValidateTasks(scenario: Scenario) -> None:
 
 def _ValidateController(scenario: Scenario) -> None:
     c = scenario.controller
-    if c.method not in ("htmpc", "weighted_sum"):
-        raise ScenarioError(f"controller.method must be htmpc|weighted_sum: {c.method}")
-    if c.solver not in ("rti", "snopt", "ipopt"):
-        raise ScenarioError(f"controller.solver must be rti|snopt|ipopt: {c.solver}")
-    if c.qp_solver not in ("piqp", "hpipm", "auto"):
-        raise ScenarioError(
-            f"controller.qp_solver must be piqp|hpipm|auto: {c.qp_solver}"
-        )
+    _OneOf(c.method, ("htmpc", "weighted_sum"), "controller.method")
+    _OneOf(c.solver, ("rti", "snopt", "ipopt"), "controller.solver")
+    _OneOf(c.qp_solver, ("piqp", "hpipm", "auto"), "controller.qp_solver")
     if c.horizon < 1:
         raise ScenarioError(f"controller.horizon must be ≥ 1, got {c.horizon}")
     _Positive(c.time_step, "controller.time_step")
@@ -274,8 +274,8 @@ def _ValidatePeople(scenario: Scenario) -> None:
     s = scenario.safety
     if not 0 < s.gamma <= 1:
         raise ScenarioError(f"safety.gamma must be in (0, 1], got {s.gamma}")
-    if s.mode not in ("safe", "paper"):
-        raise ScenarioError(f"safety.mode must be 'safe' or 'paper', got {s.mode!r}")
+    _OneOf(s.mode, ("safe", "paper"), "safety.mode")
+    _OneOf(s.inside_barrier, ("decay", "exit"), "safety.inside_barrier")
     if s.guard_steps < 0:
         raise ScenarioError(f"safety.guard_steps must be ≥ 0, got {s.guard_steps}")
     if s.static_guard_steps < 0:
@@ -296,10 +296,7 @@ def _ValidatePeople(scenario: Scenario) -> None:
     _NonNegative(s.obstacle_margin, "safety.obstacle_margin")
     _Positive(s.human_radius, "safety.human_radius")
     pc = scenario.perception
-    if pc.estimator not in ("kalman", "truth"):
-        raise ScenarioError(
-            f"perception.estimator must be kalman|truth: {pc.estimator}"
-        )
+    _OneOf(pc.estimator, ("kalman", "truth"), "perception.estimator")
     _NonNegative(pc.noise, "perception.noise")
     if not 0 <= pc.dropout_probability < 1:
         raise ScenarioError(

@@ -49,6 +49,8 @@ BAD_INPUTS = [
      ["safety.gamma"]),
     ("unknown_qp_solver", "stretch3_reach", "{controller: {qp_solver: osqp}}",
      ["controller.qp_solver", "piqp|hpipm|auto"]),
+    ("unknown_inside_barrier", "stretch3_reach", "{safety: {inside_barrier: deeper}}",
+     ["safety.inside_barrier", "decay|exit"]),
     ("zero_reciprocity_memory", "stretch3_reach",
      "{prediction: {reciprocity: {enabled: true, memory: 0}}}",
      ["prediction.reciprocity.memory", "> 0"]),

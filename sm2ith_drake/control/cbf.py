@@ -100,7 +100,11 @@ class DtCbfGroup(ConstraintGroup):
         guard_steps=0,
         static_guard_steps=0,
         extra_humans=0,
+        inside="decay",
     ):
+        if inside not in ("decay", "exit"):
+            raise ValueError(f"inside must be 'decay' or 'exit', not {inside!r}")
+        self.inside = inside
         self._robot = robot
         self._layout = layout
         N = layout.N
@@ -257,10 +261,23 @@ class DtCbfGroup(ConstraintGroup):
             c = np.argmin(h, axis=2)[..., None]  # (G+1, H, 1)
             h = np.take_along_axis(h, c, axis=2)
             dq = np.take_along_axis(dq, c[..., None], axis=2)
-        a = 1.0 - self.gamma
+        a = self._Decay(h[:-1])
         g = h[1:] - a * h[:-1]  # (G, H, C or 1)
+        a = a[..., None]
         vals = np.concatenate([-a * dq[:-1], dq[1:]], axis=3)  # (G, H, ·, 2n)
         return g.ravel(), vals.ravel()
+
+    def _Decay(self, h):
+        """The factor (1 − γ) of h_k in each row h_{k+1} − (1 − γ) h_k ≥ 0,
+        given h_k at the linearization point. With ``inside`` "exit", 0
+        where h_k < 0: a row whose barrier is already violated asks for
+        h_{k+1} ≥ 0, so its slack measures how deep the plan is at k + 1
+        rather than how fast it goes deeper (the rows are the same wherever
+        h ≥ 0, so this only changes plans that need slack)."""
+        a = np.full(h.shape, 1.0 - self.gamma)
+        if self.inside == "exit":
+            a[h < 0] = 0.0
+        return a
 
     def Barriers(self, point):
         """h at every knot: humans (K, H, C) and obstacles (K, S, C), with
@@ -302,15 +319,17 @@ class DtCbfGroup(ConstraintGroup):
         if self.num_rows == 0:
             return np.zeros(0), np.zeros(0)
         h_hum, dq_hum, dp, h_obs, dq_obs = self.Barriers(point)
-        a = 1.0 - self.gamma
-        g_hum = h_hum[1:] - a * h_hum[:-1]  # (N, H, C)
-        g_obs = h_obs[1:] - a * h_obs[:-1]  # (N, S, C)
+        a_hum, a_obs = self._Decay(h_hum[:-1]), self._Decay(h_obs[:-1])
+        g_hum = h_hum[1:] - a_hum * h_hum[:-1]  # (N, H, C)
+        g_obs = h_obs[1:] - a_obs * h_obs[:-1]  # (N, S, C)
         g = np.concatenate([g_hum.reshape(N, -1), g_obs.reshape(N, -1)], axis=1)
         # Jacobian blocks in the pattern's order.
+        a_hum, a_obs = a_hum[..., None], a_obs[..., None]
         hum = np.concatenate(
-            [-a * dq_hum[:-1], dq_hum[1:], -a * dp[:-1], dp[1:]], axis=3
+            [-a_hum * dq_hum[:-1], dq_hum[1:], -a_hum * dp[:-1], dp[1:]], axis=3
         )  # (N, H, C, 2n + 4)
-        obs = np.concatenate([-a * dq_obs[:-1], dq_obs[1:]], axis=3)  # (N, S, C, 2n)
+        # (N, S, C, 2n)
+        obs = np.concatenate([-a_obs * dq_obs[:-1], dq_obs[1:]], axis=3)
         vals = np.concatenate([hum.reshape(N, -1), obs.reshape(N, -1)], axis=1)
         g, vals = g.ravel(), vals.ravel()
         if self.num_guard:

@@ -148,6 +148,7 @@ class MpcProgram:
                 # People beyond the slots, at constant velocity (held for
                 # React), in both safety variants.
                 extra_humans=extras,
+                inside=safety.inside_barrier,
             )
             nr = self.cbf.num_rows
             self.extra_constraints.append((self.cbf, np.zeros(nr), np.full(nr, np.inf)))
