@@ -165,3 +165,47 @@ for column in ("progress_share", "base_retreat", "time_to_goal"):
     pairs = np.array([[float(half[k][column]), float(share0[k][column])] for k in keys])
     pairs = pairs[np.all(np.isfinite(pairs), axis=1)]
     print(f"   {column} (n={len(pairs)}): {Ci(pairs[:, 1] - pairs[:, 0])}")
+
+print("== Stretch 3 doorway, safe, 3 people: safety.inside_barrier exit")
+for people, name, against in [
+    (
+        "orca",
+        "orca_exit_share_0_undamped_recovery.csv",
+        "orca_share_0_undamped_recovery.csv",
+    ),
+    (
+        "instructed",
+        "exit_share_0_undamped_recovery.csv",
+        "share_0_undamped_recovery.csv",
+    ),
+]:
+    new = Keyed(Rows(HERE / name), "humans", "seed")
+    old = Keyed(Rows(HERE / against, humans="3"), "humans", "seed")
+    Compare(
+        f"{people}: exit vs decay (both share 0 + undamped + recovery)",
+        new,
+        old,
+        CONTACT,
+    )
+
+print("== Banner/cup (Stretch 3, ORCA and instructed people, both variants, 10 seeds)")
+banner = ["scenario", "variant", "people", "seed"]
+ref_banner = Keyed(
+    Rows(EXPERIMENTS / "rerun-c48edcd" / "banner_cup.csv", method="SM2ITH"), *banner
+)
+for label, name in [
+    ("robot_share 0 + undamped + recovery", "banner_cup_share_0_undamped_recovery.csv"),
+    ("undamped + recovery", "banner_cup_undamped_recovery.csv"),
+]:
+    new = Keyed(Rows(HERE / name), *banner)
+    for variant in ("paper", "safe"):
+        for people in ("orca", "instructed"):
+            cell = {k: r for k, r in new.items() if k[1:3] == (variant, people)}
+            if cell:
+                Compare(
+                    f"{label} vs default, {variant}/{people}", cell, ref_banner, CONTACT
+                )
+    keys = sorted(set(new) & set(ref_banner))
+    for column in ("time_to_goal", "ee_error_mean"):
+        d = [float(new[k][column]) - float(ref_banner[k][column]) for k in keys]
+        print(f"   {label}, {column} (n={len(keys)}): {Ci(d)}")
