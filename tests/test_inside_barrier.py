@@ -150,13 +150,6 @@ def test_the_scenario_option_reaches_the_barrier_rows():
         scenario_name="doorway_stretch3",
         scenario_text="{safety: {inside_barrier: exit}}",
     )
-    controller = MpcController(
-        robot,
-        scenario.tasks,
-        scenario.controller,
-        prediction=scenario.prediction,
-        safety=scenario.safety,
-        obstacles=scenario.obstacles,
-    )
+    controller = MpcController.FromScenario(robot, scenario)
     assert controller.program.cbf.inside == "exit"
     assert MpcController(robot, scenario.tasks, scenario.controller).program.cbf is None

@@ -100,14 +100,7 @@ def _Controller(enabled=True, scenario=None):
     scenario = scenario or _Scenario(enabled=enabled)
     robot = MobileManipulator("stretch3")
     robot.NarrowJointLimits(scenario.robot.joint_limits)
-    return MpcController(
-        robot,
-        scenario.tasks,
-        scenario.controller,
-        prediction=scenario.prediction,
-        safety=scenario.safety,
-        obstacles=scenario.obstacles,
-    )
+    return MpcController.FromScenario(robot, scenario)
 
 
 def _StepUntil(controller, q, humans, seconds):

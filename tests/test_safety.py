@@ -225,13 +225,7 @@ def _replay_controller():
         filename=CROSSING, scenario_name="crossing_ridgeback_ur10_1h"
     )
     robot = MakeRobot(scenario)
-    controller = MpcController(
-        robot,
-        scenario.tasks,
-        scenario.controller,
-        prediction=scenario.prediction,
-        safety=scenario.safety,
-    )
+    controller = MpcController.FromScenario(robot, scenario)
     return scenario, robot, controller
 
 

@@ -116,6 +116,19 @@ class MpcController:
             system), or None.
     """
 
+    @classmethod
+    def FromScenario(cls, robot, scenario) -> MpcController:
+        """The controller a Scenario describes (its tasks, controller,
+        prediction, safety and obstacles) for ``robot``."""
+        return cls(
+            robot,
+            scenario.tasks,
+            scenario.controller,
+            prediction=scenario.prediction,
+            safety=scenario.safety,
+            obstacles=scenario.obstacles,
+        )
+
     def __init__(
         self,
         robot,
