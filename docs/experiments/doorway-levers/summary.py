@@ -209,3 +209,19 @@ for label, name in [
     for column in ("time_to_goal", "ee_error_mean"):
         d = [float(new[k][column]) - float(ref_banner[k][column]) for k in keys]
         print(f"   {label}, {column} (n={len(keys)}): {Ci(d)}")
+
+print("== Pick-and-place (both robots, ORCA people, both variants, 10 seeds)")
+ref_pnp = Keyed(
+    Rows(EXPERIMENTS / "rerun-c48edcd" / "pick_and_place.csv", method="SM2ITH"),
+    *banner,
+)
+new = Keyed(Rows(HERE / "pick_and_place_undamped_recovery.csv"), *banner)
+for variant in ("paper", "safe"):
+    cell = {k: r for k, r in new.items() if k[1] == variant}
+    Compare(f"undamped + recovery vs default, {variant}/orca", cell, ref_pnp, CONTACT)
+Compare("undamped + recovery vs default, pooled", new, ref_pnp, CONTACT)
+keys = sorted(set(new) & set(ref_pnp))
+for column in ("time_to_goal", "ee_error_mean", "freezing_time"):
+    pairs = np.array([[float(ref_pnp[k][column]), float(new[k][column])] for k in keys])
+    pairs = pairs[np.all(np.isfinite(pairs), axis=1)]
+    print(f"   {column} (n={len(pairs)}): {Ci(pairs[:, 1] - pairs[:, 0])}")
