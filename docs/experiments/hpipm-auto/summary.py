@@ -50,3 +50,33 @@ for column in ("progress_share", "base_retreat", "time_to_goal", "min_human_gap"
     )
 same = sum(base[k]["time_to_goal"] == auto[k]["time_to_goal"] for k in keys)
 print(f"runs with the same time to goal to the digit: {same} of {len(keys)}")
+
+# The banner/cup study (SM2ITH, both variants, ORCA and instructed people,
+# seeds 0-9) with auto, against the default's rows of the c48edcd re-run
+# (reproduced run for run by the PIQP default at ed6ca6a).
+BANNER_BASE = HERE.parent / "rerun-c48edcd" / "banner_cup.csv"
+BANNER_AUTO = HERE / "banner_cup_auto.csv"
+
+
+def LoadBanner(path):
+    with open(path) as f:
+        return {
+            (r["scenario"], r["variant"], r["people"], int(r["seed"])): r
+            for r in csv.DictReader(f)
+            if r["method"] == "SM2ITH"
+        }
+
+
+base, auto = LoadBanner(BANNER_BASE), LoadBanner(BANNER_AUTO)
+print(f"banner/cup paired runs: {len(set(base) & set(auto))}")
+for people in ("orca", "instructed", None):
+    keys = sorted(k for k in set(base) & set(auto) if people in (None, k[2]))
+    for column in ("success", "collision", "robot_closing_contact"):
+        b = np.array([base[k][column] == "True" for k in keys], float)
+        a = np.array([auto[k][column] == "True" for k in keys], float)
+        counts = f"piqp {int(b.sum())}, auto {int(a.sum())}"
+        print(f"  {people or 'pooled'} {column}: {counts}, diff {Ci(a - b)}")
+for column in ("time_to_goal", "ee_error_mean", "min_human_gap"):
+    pairs = np.array([(float(base[k][column]), float(auto[k][column])) for k in keys])
+    pairs = pairs[np.all(np.isfinite(pairs), axis=1)]
+    print(f"  {column} (n={len(pairs)}): mean diff {Ci(pairs[:, 1] - pairs[:, 0])}")
