@@ -210,18 +210,21 @@ for label, name in [
         d = [float(new[k][column]) - float(ref_banner[k][column]) for k in keys]
         print(f"   {label}, {column} (n={len(keys)}): {Ci(d)}")
 
-print("== Pick-and-place (both robots, ORCA people, both variants, 10 seeds)")
+print("== Pick-and-place (both robots, both variants, 10 seeds): undamped + recovery")
 ref_pnp = Keyed(
     Rows(EXPERIMENTS / "rerun-c48edcd" / "pick_and_place.csv", method="SM2ITH"),
     *banner,
 )
-new = Keyed(Rows(HERE / "pick_and_place_undamped_recovery.csv"), *banner)
-for variant in ("paper", "safe"):
-    cell = {k: r for k, r in new.items() if k[1] == variant}
-    Compare(f"undamped + recovery vs default, {variant}/orca", cell, ref_pnp, CONTACT)
-Compare("undamped + recovery vs default, pooled", new, ref_pnp, CONTACT)
-keys = sorted(set(new) & set(ref_pnp))
-for column in ("time_to_goal", "ee_error_mean", "freezing_time"):
-    pairs = np.array([[float(ref_pnp[k][column]), float(new[k][column])] for k in keys])
-    pairs = pairs[np.all(np.isfinite(pairs), axis=1)]
-    print(f"   {column} (n={len(pairs)}): {Ci(pairs[:, 1] - pairs[:, 0])}")
+pnp = Keyed(Rows(HERE / "pick_and_place_undamped_recovery.csv"), *banner)
+for people in ("orca", "instructed"):
+    new = {k: r for k, r in pnp.items() if k[2] == people}
+    for variant in ("paper", "safe"):
+        cell = {k: r for k, r in new.items() if k[1] == variant}
+        Compare(f"vs default, {variant}/{people}", cell, ref_pnp, CONTACT)
+    Compare(f"vs default, {people} pooled", new, ref_pnp, CONTACT)
+    keys = sorted(set(new) & set(ref_pnp))
+    for column in ("time_to_goal", "ee_error_mean", "freezing_time"):
+        pairs = [[float(ref_pnp[k][column]), float(new[k][column])] for k in keys]
+        pairs = np.array(pairs)
+        pairs = pairs[np.all(np.isfinite(pairs), axis=1)]
+        print(f"   {people} {column} (n={len(pairs)}): {Ci(pairs[:, 1] - pairs[:, 0])}")
