@@ -274,10 +274,11 @@ class DtCbfGroup(ConstraintGroup):
         h_{k+1} ≥ 0, so its slack measures how deep the plan is at k + 1
         rather than how fast it goes deeper (the rows are the same wherever
         h ≥ 0, so this only changes plans that need slack)."""
-        a = np.full(h.shape, 1.0 - self.gamma)
-        if self.inside == "exit":
-            a[h < 0] = 0.0
-        return a
+        if self.inside != "exit":
+            # One factor for every row (a 0-d array: it broadcasts as the
+            # full one would, without one allocated per evaluation).
+            return np.asarray(1.0 - self.gamma)
+        return np.where(h < 0, 0.0, 1.0 - self.gamma)
 
     def Barriers(self, point):
         """h at every knot: humans (K, H, C) and obstacles (K, S, C), with
