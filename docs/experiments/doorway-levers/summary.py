@@ -101,6 +101,8 @@ variants = [
     ("robot_share 0", HERE / "share_0.csv", ref),
     # CVMM and React with the recovery too (b399eda); SM2ITH: 5d9d1e4's.
     ("undamped + recovery", HERE / "undamped_recovery.csv", {**ref, **ref_rec}),
+    # The recovery alone (multipliers damped, the paper's share).
+    ("recovery alone", HERE / "recovery_alone.csv", {**ref, **ref_rec}),
     (
         "robot_share 0 + undamped + recovery",
         HERE / "share_0_undamped_recovery.csv",
