@@ -36,10 +36,10 @@ def NotInstructed(r):
     return r["people"] != "instructed"
 
 
-def Write(name, rows):
+def Write(name, rows, out=HERE):
     ids = [r["run_id"] for r in rows]
     assert len(ids) == len(set(ids)), f"{name}: a run twice"
-    with open(HERE / name, "w", newline="") as f:
+    with open(Path(out) / name, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=COLUMNS, extrasaction="raise")
         w.writeheader()
         for r in rows:
