@@ -3,24 +3,27 @@
 python summary.py
 """
 
-import csv
+import json
 from collections import defaultdict
 from pathlib import Path
+
+from sm2ith_drake.experiments.campaign import ReadRows
+from sm2ith_drake.experiments.findings import FindingRows
+from sm2ith_drake.experiments.studies import STUDIES
 
 HERE = Path(__file__).resolve().parent
 PEOPLE = ("orca", "instructed", "social_force")
 VARIANTS = ("paper", "safe")
-COUNTS = ("1", "2", "3", "5")
+COUNTS = (1, 2, 3, 5)
 ROBOTS = (("stretch3", "Stretch 3"), ("ridgeback_ur10", "Ridgeback–UR10"))
 
 
 def Rows(study):
-    with open(HERE / f"{study}.csv", newline="") as f:
-        return list(csv.DictReader(f))
+    return ReadRows(HERE / f"{study}.csv")
 
 
 def Yes(r, key):
-    return r[key] == "True"
+    return r[key] is True
 
 
 def Doorway():
@@ -79,9 +82,7 @@ def Contacts():
                 closing = sum(Yes(r, "robot_closing_contact") for r in hit)
                 out.append(f"{len(hit)} ({closing})")
                 if method == "SM2ITH" and hit:
-                    deepest = (
-                        f"{-1e3 * min(float(r['min_human_gap']) for r in hit):.0f}"
-                    )
+                    deepest = f"{-1e3 * min(r['min_human_gap'] for r in hit):.0f}"
             print(
                 f"| {study.replace('_', '-')} | {people.replace('_', ' ')} | "
                 f"{variant} | " + " | ".join(out) + f" | {n} | {deepest} |"
@@ -89,8 +90,6 @@ def Contacts():
 
 
 def WallTimes():
-    import json
-
     print()
     for f in sorted(HERE.glob("*_timing.json")):
         for t in json.loads(f.read_text()):
@@ -102,52 +101,42 @@ def WallTimes():
 
 COLUMNS = [(p, v) for p in PEOPLE for v in VARIANTS]
 LABELS = {"orca": "ORCA", "instructed": "instructed", "social_force": "social force"}
-ROBOT_LABELS = dict(ROBOTS)
 
 
-def _Signed(text):
-    """'0.0013 [-0.002, 0.004]' with signs: '+0.0013 [−0.002, +0.004]'."""
-    import re
-
-    return re.sub(r"(?<![\w.\-])(\d)", r"+\1", text).replace("-", "−")
+def _Signed(x):
+    return f"{x:+.3g}".replace("-", "−")
 
 
 def WhatHolds():
-    """findings.md pivoted as in the README: a row per claim (and robot), a
-    column per people model and variant."""
+    """The findings (experiments/findings.py, as in findings.md) as the
+    README has them: a row per claim, a column per people model and
+    variant; per-count doorway claims left to findings.md."""
     table, order = {}, []
-    for line in (HERE / "findings.md").read_text().splitlines():
-        cells = [c.strip() for c in line.strip().strip("|").split("|")]
-        if len(cells) != 7 or cells[0] == "finding" or cells[0].startswith("-"):
+    for name, study in STUDIES.items():
+        path = HERE / f"{name}.csv"
+        if not study.findings or not path.exists():
             continue
-        key, claim, robot, people, variant, diffs, verdict = cells
-        robots = {r for (k, c, r) in order if (k, c) == (key, claim)}
-        row = (key, claim, robot)
-        if row not in order:
-            order.append(row)
-        verdict = verdict.strip("*")
-        if verdict == "not distinguishable":
-            text = "n.d."
-        else:
-            values = "; ".join(
-                _Signed(d.split(": ", 1)[1].rsplit(" (n=", 1)[0])
-                for d in diffs.split("; ")
-            )
-            text = f"**{verdict}** ({values})"
-        table[(row, people, variant)] = text
-        del robots
+        for e in FindingRows(study, ReadRows(path)):
+            if e["key"] == "doorway" and e["humans"]:
+                continue
+            row = f"{e['key']} {e['claim']}"
+            if row not in order:
+                order.append(row)
+            if e["verdict"] == "not distinguishable":
+                text = "n.d."
+            else:
+                values = "; ".join(
+                    f"{_Signed(d.value)} [{_Signed(d.low)}, {_Signed(d.high)}]"
+                    for _, d in e["comparisons"]
+                )
+                text = f"**{e['verdict']}** ({values})"
+            table[(row, e["people"], e["variant"])] = text
     header = " | ".join(f"{LABELS[p]} `{v}`" for p, v in COLUMNS)
     print(f"\n| finding | {header} |")
     print("|---" * (len(COLUMNS) + 1) + "|")
-    multi = {}
-    for key, claim, robot in order:
-        multi.setdefault((key, claim), set()).add(robot)
-    for key, claim, robot in order:
-        name = f"{key} {claim}"
-        if len(multi[(key, claim)]) > 1:
-            name = f"{key} {ROBOT_LABELS.get(robot, robot)}: {claim}"
-        cells = [table.get(((key, claim, robot), p, v), "–") for p, v in COLUMNS]
-        print(f"| {name} | " + " | ".join(cells) + " |")
+    for row in order:
+        cells = [table.get((row, p, v), "–") for p, v in COLUMNS]
+        print(f"| {row} | " + " | ".join(cells) + " |")
 
 
 if __name__ == "__main__":
