@@ -351,6 +351,14 @@ class SafetyConfig:
     # through a person's margin); "exit" asks h_{k+1} ≥ 0, so the slack
     # paid is the depth at every step (README, Doorway).
     inside_barrier: str = "decay"
+    # Optional (off by default; "safe" mode only): the backup-trajectory
+    # filter (control/backup.py). A solved step's command, held for one
+    # period and followed by braking to a standstill, is checked against
+    # every tracked person moving on at the measured velocity; where it
+    # would bring the robot inside a person's margin, or nearer than
+    # braking at once would, the robot brakes at once instead. For every
+    # method alike (README, "Contact in the safe variant").
+    backup_filter: bool = False
 
 
 @dataclass

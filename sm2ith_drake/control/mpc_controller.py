@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from sm2ith_drake.control.backup import BackupFilter, BrakingAcceleration
 from sm2ith_drake.control.cbf import ObstacleSegments
 from sm2ith_drake.control.hierarchy import HierarchicalSolver, MpcSolution
 from sm2ith_drake.control.prediction.factory import MakePredictor
@@ -48,6 +49,9 @@ class ControllerCounters:
     unsafe_replays: int = 0
     # Steps driven by the recovery instead of the MPC (ControllerConfig.recovery).
     recovery_steps: int = 0
+    # Solved steps whose command the backup filter replaced by braking
+    # (SafetyConfig.backup_filter).
+    filtered_steps: int = 0
 
 
 @dataclass
@@ -60,7 +64,8 @@ class StepRecord:
     iterations: int = 0
     passes: int = 0  # RTI passes run (see HierarchicalSolver.Solve)
     success: bool = True
-    mode: str = "none"  # "solved" | "shifted_plan" | "brake" | "recovery"
+    # "solved" | "filtered" | "shifted_plan" | "brake" | "recovery"
+    mode: str = "none"
     status: str = ""
     # With ControllerConfig.check_predictions and the ORCA-KKT predictor:
     # ‖a_QP − a_predicted‖ of every active human and prediction step, from
@@ -95,11 +100,6 @@ def WarmStartInputs(plan, plan_age: int, shift: int, horizon: int, num_velocitie
         previous = plan.u[shift * (plan_age + 1) :]
         u[: len(previous)] = previous
     return u
-
-
-def BrakingAcceleration(robot, nu: np.ndarray, period: float) -> np.ndarray:
-    """Drives ν toward zero as fast as the acceleration limits allow."""
-    return np.clip(-np.asarray(nu) / period, robot.nudot_lower, robot.nudot_upper)
 
 
 class MpcController:
@@ -204,6 +204,13 @@ class MpcController:
         self.safety = safety or SafetyConfig()
         self.period = ControlPeriod(config)
         self.shift = max(1, int(round(self.period / config.time_step)))
+        self.backup_filter = None
+        if self.safety.mode == "safe" and self.safety.backup_filter:
+            self.backup_filter = BackupFilter(
+                robot,
+                period=self.period,
+                reach=self.safety.human_radius + self.safety.human_margin,
+            )
         self.recovery = Recovery(
             robot,
             self.tasks,
@@ -314,6 +321,12 @@ class MpcController:
             new.plan, new.plan_age = solution, 0
             u = solution.u[0]
             record.mode = "solved"
+            if self.backup_filter is not None and not self.backup_filter.Admits(
+                q0, nu0, u, humans
+            ):
+                u = BrakingAcceleration(self.robot, nu0, self.period)
+                new.counters.filtered_steps += 1
+                record.mode = "filtered"
         else:
             new.counters.fallbacks += 1
             u = self.ReplayPlan(state, nu0)

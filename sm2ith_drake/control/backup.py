@@ -1,0 +1,117 @@
+"""The backup-trajectory safety filter (``safety.backup_filter``).
+
+A control step's command is the plan's first input, held for one control
+period; after it the robot can at best brake. The filter checks that
+whole committed motion, the first period and the braking that would
+follow it to a standstill, against every tracked person moving on at the
+measured velocity, and compares it with braking at once: for each person
+the command may bring the robot no nearer than braking at once would,
+unless it keeps outside the barrier's margin throughout. A command that
+fails is replaced by braking at once. The plan's barrier rows are soft (a
+squeezed plan pays slack to cross them) and cover the robot's motion only
+at the knots; the filter is hard, samples within each period, and sees the
+stopping distance, which a one-period check does not (a base turning with
+the arm out takes longer than a period to stop).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sm2ith_drake.control.robot_groups import ModelStep
+from sm2ith_drake.humans.robot_view import HumanDistances
+
+# Samples per control period along the checked motion.
+_SUBSTEPS = 4
+# The filter does not tell apart differences below this (m).
+_TOLERANCE = 1e-4
+# ν counts as at rest below this (per component).
+_REST = 1e-6
+
+
+def BrakingAcceleration(robot, nu: np.ndarray, period: float) -> np.ndarray:
+    """Drives ν toward zero as fast as the acceleration limits allow."""
+    return np.clip(-np.asarray(nu) / period, robot.nudot_lower, robot.nudot_upper)
+
+
+def CommittedMotion(robot, q0, nu0, u, period: float, *, max_periods: int = 50):
+    """The motion a command commits the robot to: ``u`` for one period,
+    then braking until at rest (at most ``max_periods`` periods), sampled
+    _SUBSTEPS times per period by the MPC's model step: the states q (T, n)
+    at times (1, ..., T) · period / _SUBSTEPS after now (T = 0: already at
+    rest, braking). ``u`` None: braking at once."""
+    dt = period / _SUBSTEPS
+    q = np.asarray(q0, dtype=float)
+    nu = np.asarray(nu0, dtype=float)
+    states = []
+    for k in range(max_periods + 1):
+        if k > 0 or u is None:
+            if np.all(np.abs(nu) <= _REST):
+                break
+            uk = BrakingAcceleration(robot, nu, period)
+        else:
+            uk = np.clip(
+                np.asarray(u, dtype=float), robot.nudot_lower, robot.nudot_upper
+            )
+        for _ in range(_SUBSTEPS):
+            q, nu = ModelStep(robot, q, nu, uk, dt)
+            states.append(q)
+    return np.asarray(states).reshape(len(states), np.size(q0))
+
+
+def _AtRestUntil(q0, states, count: int) -> np.ndarray:
+    """``states`` continued at rest (its last state, or q0) to ``count``."""
+    last = states[-1] if len(states) else np.asarray(q0, dtype=float)
+    pad = np.repeat(last[None], count - len(states), axis=0)
+    return np.concatenate([states, pad]) if len(states) else pad
+
+
+def WorstBarrier(robot, times, states, positions, velocities, reach: float):
+    """(H,) each person's smallest h = distance − ``reach`` along the
+    sampled motion (states at ``times``), the person moving on at the
+    measured velocity."""
+    P = positions[None] + times[:, None, None] * velocities[None]  # (T, H, 2)
+    return np.min(HumanDistances(robot, states, P) - reach, axis=0)
+
+
+class BackupFilter:
+    """Checks a command's committed motion against the tracked people (see
+    the module docstring)."""
+
+    def __init__(self, robot, *, period: float, reach: float):
+        self.robot = robot
+        self.period = period
+        self.reach = reach
+
+    def Admits(self, q0, nu0, u, humans) -> bool:
+        """Whether the command ``u`` passes: for every person, the committed
+        motion keeps h ≥ 0 throughout or comes no nearer than braking at
+        once. No tracked person, or a non-finite state: passes (the MPC's own
+        checks handle a non-finite state)."""
+        if humans is None or not len(humans.positions):
+            return True
+        q0 = np.asarray(q0, dtype=float)
+        nu0 = np.asarray(nu0, dtype=float)
+        if not (np.all(np.isfinite(q0)) and np.all(np.isfinite(nu0))):
+            return True
+        p = np.asarray(humans.positions, dtype=float)
+        v = np.nan_to_num(np.asarray(humans.velocities, dtype=float))
+        keep = np.all(np.isfinite(p), axis=1)
+        if not np.any(keep):
+            return True
+        p, v = p[keep], v[keep]
+        mine = CommittedMotion(self.robot, q0, nu0, u, self.period)
+        brake = CommittedMotion(self.robot, q0, nu0, None, self.period)
+        # Both judged over the same time, each at rest after its motion: a
+        # person walking on keeps closing in on a robot that has stopped.
+        count = max(len(mine), len(brake), 1)
+        times = np.arange(1, count + 1) * (self.period / _SUBSTEPS)
+        h_mine = WorstBarrier(
+            self.robot, times, _AtRestUntil(q0, mine, count), p, v, self.reach
+        )
+        if np.all(h_mine >= -_TOLERANCE):
+            return True
+        h_brake = WorstBarrier(
+            self.robot, times, _AtRestUntil(q0, brake, count), p, v, self.reach
+        )
+        return bool(np.all(h_mine >= np.minimum(h_brake, 0.0) - _TOLERANCE))
