@@ -354,11 +354,13 @@ class SafetyConfig:
     # Optional (off by default; "safe" mode only): the backup-trajectory
     # filter (control/backup.py). A solved step's command, held for one
     # period and followed by braking to a standstill, is checked against
-    # every tracked person moving on at the measured velocity; where it
-    # would bring the robot inside a person's margin, or nearer than
-    # braking at once would, the robot brakes at once instead. For every
-    # method alike (README, "Contact in the safe variant").
+    # every tracked person moving on at the measured velocity and every
+    # wall; where it would come within backup_margin (m) of a person's disc
+    # (human_radius) or of a wall, and nearer than braking at once would,
+    # the robot brakes at once instead (README, "Contact in the safe
+    # variant").
     backup_filter: bool = False
+    backup_margin: float = 0.03
 
 
 @dataclass

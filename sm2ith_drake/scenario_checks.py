@@ -285,6 +285,7 @@ def _ValidatePeople(scenario: Scenario) -> None:
     _NonNegative(s.guard_deviation, "safety.guard_deviation")
     _NonNegative(s.guard_hold, "safety.guard_hold")
     _NonNegative(s.guard_gap, "safety.guard_gap")
+    _NonNegative(s.backup_margin, "safety.backup_margin")
     _NonNegative(s.human_margin, "safety.human_margin")
     _Positive(s.human_slack_weight, "safety.human_slack_weight")
     if not s.obstacle_slack_weight > s.human_slack_weight:

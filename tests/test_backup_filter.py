@@ -15,7 +15,7 @@ from sm2ith_drake.control.backup import (
 )
 from sm2ith_drake.control.mpc_controller import MpcController
 from sm2ith_drake.humans.messages import HumanEstimate
-from sm2ith_drake.humans.robot_view import HumanDistances
+from sm2ith_drake.humans.robot_view import HumanDistances, WallDistances
 from sm2ith_drake.resources import GetDiagramsDir
 from sm2ith_drake.scenario_loader import LoadScenario, MakeRobot
 
@@ -42,9 +42,29 @@ def _PersonAhead(robot, q0, reach, h0):
     return ahead
 
 
-def _Filter(scenario, robot):
-    reach = scenario.safety.human_radius + scenario.safety.human_margin
-    return BackupFilter(robot, period=0.2, reach=reach), reach
+def _WallAhead(robot, q0, distance):
+    """A wall across the +x direction, ``distance`` from the robot."""
+
+    def Wall(x):
+        return np.array([[[x, -2.0], [x, 2.0]]])
+
+    x = 3.0
+    while WallDistances(robot, q0[None], Wall(x))[0, 0] > distance:
+        x -= 0.0005
+    return Wall(x)
+
+
+def _Filter(scenario, robot, walls=()):
+    """The filter with the barrier's margin, so h is the DT-CBF's."""
+    margin = scenario.safety.human_margin
+    check = BackupFilter(
+        robot,
+        period=0.2,
+        human_radius=scenario.safety.human_radius,
+        margin=margin,
+        walls=walls,
+    )
+    return check, scenario.safety.human_radius + margin
 
 
 def test_committed_motion_brakes_to_rest_as_the_model_does(ridgeback):
@@ -154,7 +174,9 @@ class _TowardThePerson:
 @pytest.mark.parametrize("mode", ["safe", "paper"])
 def test_controller_brakes_where_the_filter_refuses(ridgeback, mode):
     scenario, robot = ridgeback
-    safety = dataclasses.replace(scenario.safety, backup_filter=True, mode=mode)
+    safety = dataclasses.replace(
+        scenario.safety, backup_filter=True, backup_margin=0.1, mode=mode
+    )
     controller = MpcController(
         robot,
         scenario.tasks,
@@ -164,7 +186,7 @@ def test_controller_brakes_where_the_filter_refuses(ridgeback, mode):
         obstacles=scenario.obstacles,
     )
     controller.solver = _TowardThePerson(controller.solver)
-    reach = safety.human_radius + safety.human_margin
+    reach = safety.human_radius + safety.backup_margin
     q0 = np.array(robot.default_q, dtype=float)
     nu0 = np.zeros(robot.num_velocities)
     nu0[0] = 0.5
@@ -197,3 +219,20 @@ def test_controller_brakes_where_the_filter_refuses(ridgeback, mode):
     else:  # the paper's formulation has no filter
         assert state.record.mode == "solved"
         assert state.command_u[0] == 1.0
+
+
+def test_walls_count(ridgeback):
+    """Driving at a wall whose margin braking at once keeps out of, but one
+    more period at speed does not: refused, like a person."""
+    scenario, robot = ridgeback
+    q0 = np.array(robot.default_q, dtype=float)
+    nu0 = np.zeros(robot.num_velocities)
+    nu0[0] = 1.0
+    hold = np.zeros(robot.num_velocities)
+    # A wall across the path, 0.6 m + margin beyond the robot's front:
+    # braking at once (0.5 m) stays out, one more period first does not.
+    wall = _WallAhead(robot, q0, 0.1 + 0.65)
+    check, _ = _Filter(scenario, robot, walls=wall)
+    nobody_near = HumanEstimate(ids=[1], positions=[[-9.0, 9.0]], velocities=[[0, 0]])
+    assert not check.Admits(q0, nu0, hold, nobody_near)
+    assert check.Admits(q0, nu0, BrakingAcceleration(robot, nu0, 0.2), nobody_near)

@@ -4,14 +4,17 @@ A control step's command is the plan's first input, held for one control
 period; after it the robot can at best brake. The filter checks that
 whole committed motion, the first period and the braking that would
 follow it to a standstill, against every tracked person moving on at the
-measured velocity, and compares it with braking at once: for each person
-the command may bring the robot no nearer than braking at once would,
-unless it keeps outside the barrier's margin throughout. A command that
-fails is replaced by braking at once. The plan's barrier rows are soft (a
-squeezed plan pays slack to cross them) and cover the robot's motion only
-at the knots; the filter is hard, samples within each period, and sees the
-stopping distance, which a one-period check does not (a base turning with
-the arm out takes longer than a period to stop).
+measured velocity and against the walls, and compares it with braking at
+once: for each person and each wall the command may bring the robot no
+nearer than braking at once would, unless it keeps more than
+``safety.backup_margin`` away throughout. A command that fails is replaced
+by braking at once, unless braking at once would come nearer a wall than
+the command (walls outrank people, as in the plan's slack weights). The
+plan's barrier rows are soft (a squeezed plan pays slack to cross them) and
+hold the robot's motion only at the knots, under a linearization; the
+filter is hard, on the nonlinear distances, samples within each period,
+and sees the stopping distance, which a one-period check does not (a base
+turning with the arm out takes longer than a period to stop).
 """
 
 from __future__ import annotations
@@ -19,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from sm2ith_drake.control.robot_groups import ModelStep
-from sm2ith_drake.humans.robot_view import HumanDistances
+from sm2ith_drake.humans.robot_view import HumanDistances, WallDistances
 
 # Samples per control period along the checked motion.
 _SUBSTEPS = 4
@@ -66,28 +69,32 @@ def _AtRestUntil(q0, states, count: int) -> np.ndarray:
     return np.concatenate([states, pad]) if len(states) else pad
 
 
-def WorstBarrier(robot, times, states, positions, velocities, reach: float):
-    """(H,) each person's smallest h = distance − ``reach`` along the
-    sampled motion (states at ``times``), the person moving on at the
-    measured velocity."""
+def WorstBarriers(robot, times, states, positions, velocities, walls, reach):
+    """Each barrier's smallest value along the sampled motion (states at
+    ``times``): (H,) people, distance − ``reach`` to each person moving on
+    at the measured velocity, and (S,) walls, distance to each wall."""
     P = positions[None] + times[:, None, None] * velocities[None]  # (T, H, 2)
-    return np.min(HumanDistances(robot, states, P) - reach, axis=0)
+    people = np.min(HumanDistances(robot, states, P) - reach, axis=0)
+    return people, np.min(WallDistances(robot, states, walls), axis=0)
 
 
 class BackupFilter:
-    """Checks a command's committed motion against the tracked people (see
-    the module docstring)."""
+    """Checks a command's committed motion against the tracked people and
+    the walls (see the module docstring)."""
 
-    def __init__(self, robot, *, period: float, reach: float):
+    def __init__(
+        self, robot, *, period: float, human_radius: float, margin: float, walls=()
+    ):
         self.robot = robot
         self.period = period
-        self.reach = reach
+        self.reach = human_radius + margin
+        self.margin = margin
+        self.walls = np.asarray(walls, dtype=float).reshape(-1, 2, 2)
 
     def Admits(self, q0, nu0, u, humans) -> bool:
-        """Whether the command ``u`` passes: for every person, the committed
-        motion keeps h ≥ 0 throughout or comes no nearer than braking at
-        once. No tracked person, or a non-finite state: passes (the MPC's own
-        checks handle a non-finite state)."""
+        """Whether the command ``u`` passes (module docstring). No tracked
+        person, or a non-finite state: passes (the MPC's own checks handle
+        a non-finite state)."""
         if humans is None or not len(humans.positions):
             return True
         q0 = np.asarray(q0, dtype=float)
@@ -106,12 +113,31 @@ class BackupFilter:
         # person walking on keeps closing in on a robot that has stopped.
         count = max(len(mine), len(brake), 1)
         times = np.arange(1, count + 1) * (self.period / _SUBSTEPS)
-        h_mine = WorstBarrier(
-            self.robot, times, _AtRestUntil(q0, mine, count), p, v, self.reach
+        people, walls = WorstBarriers(
+            self.robot,
+            times,
+            _AtRestUntil(q0, mine, count),
+            p,
+            v,
+            self.walls,
+            self.reach,
         )
-        if np.all(h_mine >= -_TOLERANCE):
+        walls = walls - self.margin
+        if np.all(people >= -_TOLERANCE) and np.all(walls >= -_TOLERANCE):
             return True
-        h_brake = WorstBarrier(
-            self.robot, times, _AtRestUntil(q0, brake, count), p, v, self.reach
+        brake_people, brake_walls = WorstBarriers(
+            self.robot,
+            times,
+            _AtRestUntil(q0, brake, count),
+            p,
+            v,
+            self.walls,
+            self.reach,
         )
-        return bool(np.all(h_mine >= np.minimum(h_brake, 0.0) - _TOLERANCE))
+        brake_walls = brake_walls - self.margin
+        if np.any(brake_walls < np.minimum(walls, 0.0) - _TOLERANCE):
+            return True  # braking would be worse against a wall
+        return bool(
+            np.all(people >= np.minimum(brake_people, 0.0) - _TOLERANCE)
+            and np.all(walls >= np.minimum(brake_walls, 0.0) - _TOLERANCE)
+        )

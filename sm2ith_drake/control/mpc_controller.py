@@ -209,7 +209,9 @@ class MpcController:
             self.backup_filter = BackupFilter(
                 robot,
                 period=self.period,
-                reach=self.safety.human_radius + self.safety.human_margin,
+                human_radius=self.safety.human_radius,
+                margin=self.safety.backup_margin,
+                walls=segments,
             )
         self.recovery = Recovery(
             robot,

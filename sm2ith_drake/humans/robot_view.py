@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sm2ith_drake.geometry import point_segment_distance_2d
+from sm2ith_drake.geometry import point_segment_distance_2d, segment_closest_points
 
 
 @dataclass
@@ -114,6 +114,26 @@ def HumanDistances(robot, states, human_positions) -> np.ndarray:
         ends[:, None, :, 0], ends[:, None, :, 1], P[:, :, None, :]
     )  # (T, H, C)
     return np.min(d - robot.capsule_radii[None, None, :], axis=2)
+
+
+def WallDistances(robot, states, segments) -> np.ndarray:
+    """(T, S) horizontal distance from each wall segment (S, 2, 2) to the
+    nearest robot body's surface (every capsule)."""
+    W = np.asarray(segments, dtype=float).reshape(-1, 2, 2)
+    x = np.asarray(states, dtype=float)
+    if W.size == 0:
+        return np.zeros((len(x), 0))
+    kin = robot.CalcKinematics(x[:, : robot.num_positions])
+    ends = kin.capsule_points[..., :2]  # (T, C, 2, 2)
+    lift = np.zeros(ends.shape[:-1] + (1,))
+    A = np.concatenate([ends[:, None, :, 0], lift[:, None, :, 0]], axis=-1)
+    B = np.concatenate([ends[:, None, :, 1], lift[:, None, :, 1]], axis=-1)
+    W3 = np.concatenate([W, np.zeros(W.shape[:-1] + (1,))], axis=-1)
+    _, _, c1, c2 = segment_closest_points(
+        A, B, W3[None, :, None, 0], W3[None, :, None, 1]
+    )  # (T, S, C, 3)
+    dist = np.linalg.norm((c1 - c2)[..., :2], axis=-1) - robot.capsule_radii
+    return dist.min(axis=2)
 
 
 # The robot as one simulated person sees it (humans/crowd.py, humans/instructed.py).

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from sm2ith_drake.control.cbf import ObstacleSegments
-from sm2ith_drake.geometry import point_segment_distance_2d, segment_closest_points
-from sm2ith_drake.humans.robot_view import HumanDistances
+from sm2ith_drake.geometry import point_segment_distance_2d
+from sm2ith_drake.humans.robot_view import HumanDistances, WallDistances
 
 # Tolerance for calling a state a limit violation (numerical noise).
 _LIMIT_TOL = 1e-6
@@ -269,21 +269,9 @@ def ProgressShare(times, base_xy, goal_xy, human_positions, at_goal=None) -> flo
 def ObstacleClearance(robot, states, segments) -> float:
     """The smallest distance between any robot capsule's surface and any
     wall segment, in the plane (NaN without walls)."""
-    W = np.asarray(segments, dtype=float).reshape(-1, 2, 2)
-    x = np.asarray(states, dtype=float)
-    if W.size == 0 or x.size == 0:
+    if np.asarray(segments).size == 0 or np.asarray(states).size == 0:
         return float("nan")
-    kin = robot.CalcKinematics(x[:, : robot.num_positions])
-    ends = kin.capsule_points[..., :2]  # (T, C, 2, 2)
-    lift = np.zeros(ends.shape[:-1] + (1,))
-    A = np.concatenate([ends[:, None, :, 0], lift[:, None, :, 0]], axis=-1)
-    B = np.concatenate([ends[:, None, :, 1], lift[:, None, :, 1]], axis=-1)
-    W3 = np.concatenate([W, np.zeros(W.shape[:-1] + (1,))], axis=-1)
-    _, _, c1, c2 = segment_closest_points(
-        A, B, W3[None, :, None, 0], W3[None, :, None, 1]
-    )  # (T, S, C, 3)
-    dist = np.linalg.norm((c1 - c2)[..., :2], axis=-1) - robot.capsule_radii
-    return float(dist.min())
+    return float(WallDistances(robot, states, segments).min())
 
 
 def _GoalTolerances(scenario, phases, base_task) -> np.ndarray:
