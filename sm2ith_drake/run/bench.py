@@ -131,7 +131,10 @@ def RunBenchmark(
                 for r in records
             )
         ),
-        "fallbacks": int(sum(r.mode != "solved" for r in records)),
+        # A solved step whose command the backup filter replaced by braking
+        # is not a fallback (it is counted apart).
+        "fallbacks": int(sum(r.mode not in ("solved", "filtered") for r in records)),
+        "filtered": int(sum(r.mode == "filtered" for r in records)),
         **(_Profile(steps) if profile else {}),
     }
 

@@ -140,6 +140,7 @@ def SummarizeRun(log, robot, human_radii=None) -> dict:
         out["fallbacks"] = c.fallbacks
         out["braking_fallbacks"] = c.braking_fallbacks
         out["recovery_steps"] = c.recovery_steps
+        out["filtered_steps"] = c.filtered_steps
     if human_radii is not None:
         out.update(HumanMetrics(log, robot, human_radii))
     errors = [
