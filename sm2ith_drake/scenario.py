@@ -356,11 +356,11 @@ class SafetyConfig:
     # period and followed by braking to a standstill, is checked against
     # every tracked person moving on at the measured velocity and every
     # wall; where it would come within backup_margin (m) of a person's disc
-    # (human_radius) or of a wall, and nearer than braking at once would,
-    # the robot brakes at once instead (README, "Contact in the safe
-    # variant").
+    # (human_radius), or within half the obstacle margin of a wall, and
+    # nearer than braking at once would, the robot brakes at once instead
+    # (README, "Contact in the safe variant").
     backup_filter: bool = False
-    backup_margin: float = 0.03
+    backup_margin: float = 0.1
 
 
 @dataclass

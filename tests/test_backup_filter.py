@@ -232,7 +232,9 @@ def test_walls_count(ridgeback):
     # A wall across the path, 0.6 m + margin beyond the robot's front:
     # braking at once (0.5 m) stays out, one more period first does not.
     wall = _WallAhead(robot, q0, 0.1 + 0.65)
-    check, _ = _Filter(scenario, robot, walls=wall)
+    check = BackupFilter(
+        robot, period=0.2, human_radius=0.3, margin=0.1, walls=wall, wall_margin=0.1
+    )
     nobody_near = HumanEstimate(ids=[1], positions=[[-9.0, 9.0]], velocities=[[0, 0]])
     assert not check.Admits(q0, nu0, hold, nobody_near)
     assert check.Admits(q0, nu0, BrakingAcceleration(robot, nu0, 0.2), nobody_near)

@@ -6,8 +6,10 @@ whole committed motion, the first period and the braking that would
 follow it to a standstill, against every tracked person moving on at the
 measured velocity and against the walls, and compares it with braking at
 once: for each person and each wall the command may bring the robot no
-nearer than braking at once would, unless it keeps more than
-``safety.backup_margin`` away throughout. A command that fails is replaced
+nearer than braking at once would, unless it keeps outside the margin
+throughout (``safety.backup_margin`` beyond a person's disc; half the
+obstacle margin from a wall, the margin's part a route may use, as in the
+recovery). A command that fails is replaced
 by braking at once, unless braking at once would come nearer a wall than
 the command (walls outrank people, as in the plan's slack weights). The
 plan's barrier rows are soft (a squeezed plan pays slack to cross them) and
@@ -83,12 +85,19 @@ class BackupFilter:
     the walls (see the module docstring)."""
 
     def __init__(
-        self, robot, *, period: float, human_radius: float, margin: float, walls=()
+        self,
+        robot,
+        *,
+        period: float,
+        human_radius: float,
+        margin: float,
+        walls=(),
+        wall_margin: float = 0.0,
     ):
         self.robot = robot
         self.period = period
         self.reach = human_radius + margin
-        self.margin = margin
+        self.wall_margin = wall_margin
         self.walls = np.asarray(walls, dtype=float).reshape(-1, 2, 2)
 
     def Admits(self, q0, nu0, u, humans) -> bool:
@@ -122,7 +131,7 @@ class BackupFilter:
             self.walls,
             self.reach,
         )
-        walls = walls - self.margin
+        walls = walls - self.wall_margin
         if np.all(people >= -_TOLERANCE) and np.all(walls >= -_TOLERANCE):
             return True
         brake_people, brake_walls = WorstBarriers(
@@ -134,7 +143,7 @@ class BackupFilter:
             self.walls,
             self.reach,
         )
-        brake_walls = brake_walls - self.margin
+        brake_walls = brake_walls - self.wall_margin
         if np.any(brake_walls < np.minimum(walls, 0.0) - _TOLERANCE):
             return True  # braking would be worse against a wall
         return bool(

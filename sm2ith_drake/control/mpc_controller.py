@@ -212,6 +212,7 @@ class MpcController:
                 human_radius=self.safety.human_radius,
                 margin=self.safety.backup_margin,
                 walls=segments,
+                wall_margin=0.5 * self.safety.obstacle_margin,
             )
         self.recovery = Recovery(
             robot,
