@@ -24,7 +24,11 @@ from __future__ import annotations
 import numpy as np
 
 from sm2ith_drake.control.robot_groups import ModelStep
-from sm2ith_drake.humans.robot_view import HumanDistances, WallDistances
+from sm2ith_drake.humans.robot_view import (
+    FloorCapsules,
+    HumanDistances,
+    WallDistances,
+)
 
 # Samples per control period along the checked motion.
 _SUBSTEPS = 4
@@ -75,9 +79,11 @@ def WorstBarriers(robot, times, states, positions, velocities, walls, reach):
     """Each barrier's smallest value along the sampled motion (states at
     ``times``): (H,) people, distance − ``reach`` to each person moving on
     at the measured velocity, and (S,) walls, distance to each wall."""
+    capsules = FloorCapsules(robot, states)
     P = positions[None] + times[:, None, None] * velocities[None]  # (T, H, 2)
-    people = np.min(HumanDistances(robot, states, P) - reach, axis=0)
-    return people, np.min(WallDistances(robot, states, walls), axis=0)
+    people = HumanDistances(robot, states, P, capsules=capsules) - reach
+    wall = WallDistances(robot, states, walls, capsules=capsules)
+    return np.min(people, axis=0), np.min(wall, axis=0)
 
 
 class BackupFilter:
@@ -116,24 +122,35 @@ class BackupFilter:
         if not np.any(keep):
             return True
         p, v = p[keep], v[keep]
+        dt = self.period / _SUBSTEPS
         mine = CommittedMotion(self.robot, q0, nu0, u, self.period)
-        brake = CommittedMotion(self.robot, q0, nu0, None, self.period)
-        # Both judged over the same time, each at rest after its motion: a
-        # person walking on keeps closing in on a robot that has stopped.
-        count = max(len(mine), len(brake), 1)
-        times = np.arange(1, count + 1) * (self.period / _SUBSTEPS)
+        # Outside the margins throughout its own motion (at least one
+        # sample): passes.
+        mine = _AtRestUntil(q0, mine, max(len(mine), 1))
+        times = np.arange(1, len(mine) + 1) * dt
         people, walls = WorstBarriers(
-            self.robot,
-            times,
-            _AtRestUntil(q0, mine, count),
-            p,
-            v,
-            self.walls,
-            self.reach,
+            self.robot, times, mine, p, v, self.walls, self.reach
         )
-        walls = walls - self.wall_margin
-        if np.all(people >= -_TOLERANCE) and np.all(walls >= -_TOLERANCE):
+        if np.all(people >= -_TOLERANCE) and np.all(
+            walls - self.wall_margin >= -_TOLERANCE
+        ):
             return True
+        # Otherwise against braking at once, both over the same time, each
+        # at rest after its motion (a person walking on keeps closing in on
+        # a robot that has stopped).
+        brake = CommittedMotion(self.robot, q0, nu0, None, self.period)
+        count = max(len(mine), len(brake))
+        times = np.arange(1, count + 1) * dt
+        if count > len(mine):  # (braking never outlasts a command: rare)
+            people, walls = WorstBarriers(
+                self.robot,
+                times,
+                _AtRestUntil(q0, mine, count),
+                p,
+                v,
+                self.walls,
+                self.reach,
+            )
         brake_people, brake_walls = WorstBarriers(
             self.robot,
             times,
@@ -143,6 +160,7 @@ class BackupFilter:
             self.walls,
             self.reach,
         )
+        walls = walls - self.wall_margin
         brake_walls = brake_walls - self.wall_margin
         if np.any(brake_walls < np.minimum(walls, 0.0) - _TOLERANCE):
             return True  # braking would be worse against a wall

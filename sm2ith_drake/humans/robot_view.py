@@ -101,30 +101,34 @@ def NearestBodies(robot: RobotView, positions, derivatives: bool = True) -> Near
     )
 
 
-def HumanDistances(robot, states, human_positions) -> np.ndarray:
+def FloorCapsules(robot, states) -> np.ndarray:
+    """(T, C, 2, 2) the ends of every robot capsule's axis on the floor."""
+    x = np.asarray(states, dtype=float)
+    return robot.CalcKinematics(x[:, : robot.num_positions]).capsule_points[..., :2]
+
+
+def HumanDistances(robot, states, human_positions, *, capsules=None) -> np.ndarray:
     """(T, H) horizontal distance from each human's centre to the nearest
-    robot body (every capsule's surface: the base and every arm link)."""
-    x = np.asarray(states)
+    robot body (every capsule's surface: the base and every arm link).
+    ``capsules``: FloorCapsules(robot, states), if already computed."""
     P = np.asarray(human_positions, dtype=float)  # (T, H, 2)
     if P.size == 0:
-        return np.zeros((len(x), 0))
-    kin = robot.CalcKinematics(x[:, : robot.num_positions])
-    ends = kin.capsule_points[..., :2]  # (T, C, 2, 2)
+        return np.zeros((len(states), 0))
+    ends = FloorCapsules(robot, states) if capsules is None else capsules
     d, _, _ = point_segment_distance_2d(
         ends[:, None, :, 0], ends[:, None, :, 1], P[:, :, None, :]
     )  # (T, H, C)
     return np.min(d - robot.capsule_radii[None, None, :], axis=2)
 
 
-def WallDistances(robot, states, segments) -> np.ndarray:
+def WallDistances(robot, states, segments, *, capsules=None) -> np.ndarray:
     """(T, S) horizontal distance from each wall segment (S, 2, 2) to the
-    nearest robot body's surface (every capsule)."""
+    nearest robot body's surface (every capsule). ``capsules``:
+    FloorCapsules(robot, states), if already computed."""
     W = np.asarray(segments, dtype=float).reshape(-1, 2, 2)
-    x = np.asarray(states, dtype=float)
     if W.size == 0:
-        return np.zeros((len(x), 0))
-    kin = robot.CalcKinematics(x[:, : robot.num_positions])
-    ends = kin.capsule_points[..., :2]  # (T, C, 2, 2)
+        return np.zeros((len(states), 0))
+    ends = FloorCapsules(robot, states) if capsules is None else capsules
     lift = np.zeros(ends.shape[:-1] + (1,))
     A = np.concatenate([ends[:, None, :, 0], lift[:, None, :, 0]], axis=-1)
     B = np.concatenate([ends[:, None, :, 1], lift[:, None, :, 1]], axis=-1)
