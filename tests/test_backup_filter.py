@@ -7,6 +7,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from first_prediction import FirstPrediction
 
 from sm2ith_drake.control.backup import (
     BackupFilter,
@@ -192,14 +193,7 @@ def test_controller_brakes_where_the_filter_refuses(ridgeback, mode):
     nu0[0] = 0.5
     ahead = _PersonAhead(robot, q0, reach, 0.3)
     standing = HumanEstimate(ids=[1], positions=[ahead], velocities=[[0.0, 0.0]])
-    model = controller.human_predictor
-    prediction, _ = model.Predict(
-        model.InitialState(),
-        estimate=standing,
-        q0=q0,
-        nu0=nu0,
-        warm_start_inputs=controller.WarmStartInputs(controller.InitialState()),
-    )
+    prediction = FirstPrediction(controller, standing, q0, nu0)
     targets = {t.name: np.asarray(t.target, dtype=float) for t in controller.tasks}
     state = controller.Step(
         controller.InitialState(),

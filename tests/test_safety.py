@@ -23,6 +23,7 @@ import itertools
 
 import numpy as np
 import pytest
+from first_prediction import FirstPrediction
 
 from sm2ith_drake.resources import GetDiagramsDir
 from sm2ith_drake.run.simulation import RunSimulation
@@ -266,7 +267,7 @@ def test_stale_plan_is_not_replayed_into_a_person():
         q0=q0,
         nu0=nu0,
         targets=targets,
-        prediction=_Predict(controller, far),
+        prediction=FirstPrediction(controller, far),
     )
     assert state.record.mode == "solved"
 
@@ -285,7 +286,7 @@ def test_stale_plan_is_not_replayed_into_a_person():
         q0=q1,
         nu0=nu1,
         targets=targets,
-        prediction=_Predict(controller, standing),
+        prediction=FirstPrediction(controller, standing),
     )
     # …but not into the person.
     assert state.record.mode == "brake"
@@ -482,7 +483,7 @@ def test_extra_rows_keep_the_robot_from_a_person_without_a_slot(predictor):
         for name in targets:  # the base's goal lies beyond the walker
             if name.startswith("base"):
                 targets[name][:2] = ahead + [3.0, 0.0]
-        predicted = _Predict(controller, people, q0, nu0)
+        predicted = FirstPrediction(controller, people, q0, nu0)
         assert predicted.slot_ids.tolist() == [2]
         assert predicted.dropped == 1 - extra
         q = _FirstStep(controller, people, q0, nu0, targets).plan.q
@@ -534,20 +535,7 @@ def _FirstStep(controller, estimate, q0, nu0, targets):
         q0=q0,
         nu0=nu0,
         targets=targets,
-        prediction=_Predict(controller, estimate, q0, nu0),
+        prediction=FirstPrediction(controller, estimate, q0, nu0),
     )
     assert state.record.mode == "solved"
     return state
-
-
-def _Predict(controller, estimate, q0=None, nu0=None):
-    """The HumanPredictor's output for ``estimate`` at a first step."""
-    model = controller.human_predictor
-    prediction, _ = model.Predict(
-        model.InitialState(),
-        estimate=estimate,
-        q0=q0,
-        nu0=nu0,
-        warm_start_inputs=controller.WarmStartInputs(controller.InitialState()),
-    )
-    return prediction
