@@ -178,13 +178,8 @@ def test_controller_brakes_where_the_filter_refuses(ridgeback, mode):
     safety = dataclasses.replace(
         scenario.safety, backup_filter=True, backup_margin=0.1, mode=mode
     )
-    controller = MpcController(
-        robot,
-        scenario.tasks,
-        scenario.controller,
-        prediction=scenario.prediction,
-        safety=safety,
-        obstacles=scenario.obstacles,
+    controller = MpcController.FromScenario(
+        robot, dataclasses.replace(scenario, safety=safety)
     )
     controller.solver = _TowardThePerson(controller.solver)
     reach = safety.human_radius + safety.backup_margin
