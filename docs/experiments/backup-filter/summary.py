@@ -57,7 +57,10 @@ def Summarize(path: Path):
         gaps = [
             min(x["min_human_gap"] for x in side) for side in zip(*pairs, strict=True)
         ]
-        print(f"  deepest contact {-gaps[0] * 1e3:.0f} vs {-gaps[1] * 1e3:.0f} mm")
+        print(
+            f"  smallest gap {gaps[0] * 1e3:.0f} vs {gaps[1] * 1e3:.0f} mm "
+            "(negative: the deepest contact)"
+        )
         counts = defaultdict(lambda: [0, 0])
         for r, o in pairs:
             counts[r["humans"]][0] += bool(r["success"])
