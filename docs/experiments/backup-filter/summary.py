@@ -24,7 +24,8 @@ def Ci(a, b):
     return f"{e.value:+.2f} [{e.low:+.2f}, {e.high:+.2f}]"
 
 
-def Summarize(path: Path):
+def Pairs(path: Path) -> dict:
+    """{(study, robot, people, variant, method): [(run, its default run)]}."""
     study = path.stem.split(".")[0]
     reference = {r["run_id"]: r for r in ReadRows(FINAL / f"{study}.csv")}
     cells = defaultdict(list)
@@ -32,11 +33,32 @@ def Summarize(path: Path):
         if r["run_id"] in reference:
             cell = (study, r["robot"], r["people"], r["variant"], r["method"])
             cells[cell].append((r, reference[r["run_id"]]))
+    return cells
+
+
+def Pooled(paths, method: str, people: str):
+    """Contacts over every study's runs of one method and people model."""
+    pairs = [
+        pair
+        for path in paths
+        for cell, cell_pairs in Pairs(path).items()
+        if cell[4] == method and cell[2] == people
+        for pair in cell_pairs
+    ]
+    print(f"pooled: {method}, {people} people, {len(pairs)} pairs (filter vs default)")
+    for flag in ("collision", "robot_closing_contact"):
+        new = [r[flag] is True for r, _ in pairs]
+        old = [o[flag] is True for _, o in pairs]
+        print(f"  {flag:22s} {sum(new):3d} vs {sum(old):3d}  {Ci(new, old)}")
+
+
+def Summarize(path: Path):
+    cells = Pairs(path)
     for cell, pairs in sorted(cells.items()):
         print(f"{path.name}: {' '.join(cell)}, {len(pairs)} pairs (filter vs default)")
         for flag in FLAGS:
-            new = [bool(r[flag]) for r, _ in pairs]
-            old = [bool(o[flag]) for _, o in pairs]
+            new = [r[flag] is True for r, _ in pairs]
+            old = [o[flag] is True for _, o in pairs]
             print(f"  {flag:22s} {sum(new):3d} vs {sum(old):3d}  {Ci(new, old)}")
         for column, scale, unit in (
             ("freezing_time", 1.0, "s"),
@@ -63,8 +85,8 @@ def Summarize(path: Path):
         )
         counts = defaultdict(lambda: [0, 0])
         for r, o in pairs:
-            counts[r["humans"]][0] += bool(r["success"])
-            counts[r["humans"]][1] += bool(o["success"])
+            counts[r["humans"]][0] += r["success"] is True
+            counts[r["humans"]][1] += o["success"] is True
         print(
             "  arrivals by people count: "
             + ", ".join(f"{h}: {a} vs {b}" for h, (a, b) in sorted(counts.items()))
@@ -72,5 +94,9 @@ def Summarize(path: Path):
 
 
 if __name__ == "__main__":
-    for csv_path in sorted(HERE.glob("*.csv")):
+    paths = sorted(HERE.glob("*.csv"))
+    for csv_path in paths:
         Summarize(csv_path)
+    # The filter as shipped: the files without an earlier commit's name.
+    shipped = [p for p in paths if p.stem.count(".") == 1]
+    Pooled(shipped, "SM2ITH", "orca")
