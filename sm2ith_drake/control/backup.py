@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from sm2ith_drake.control.profiling import PROFILER
 from sm2ith_drake.control.robot_groups import ModelStep
 from sm2ith_drake.humans.robot_view import (
     FloorCapsules,
@@ -106,6 +107,7 @@ class BackupFilter:
         self.wall_margin = wall_margin
         self.walls = np.asarray(walls, dtype=float).reshape(-1, 2, 2)
 
+    @PROFILER.Timed("backup_filter")
     def Admits(self, q0, nu0, u, humans) -> bool:
         """Whether the command ``u`` passes (module docstring). No tracked
         person, or a non-finite state: passes (the MPC's own checks handle
