@@ -108,6 +108,11 @@ def test_a_command_is_judged_by_its_stopping_distance(ridgeback):
     # Or with the person walking away faster than the robot drives.
     leaving = HumanEstimate(ids=[1], positions=[ahead], velocities=[[1.2, 0.0]])
     assert check.Admits(q0, nu0, hold, leaving)
+    # Unless people are held where measured (React's filter).
+    held = BackupFilter(
+        robot, period=0.2, human_radius=0.3, margin=0.1, people_move=False
+    )
+    assert not held.Admits(q0, nu0, hold, leaving)
 
 
 def test_inside_the_margin_no_nearer_than_braking(ridgeback):
@@ -227,3 +232,15 @@ def test_walls_count(ridgeback):
     nobody_near = HumanEstimate(ids=[1], positions=[[-9.0, 9.0]], velocities=[[0, 0]])
     assert not check.Admits(q0, nu0, hold, nobody_near)
     assert check.Admits(q0, nu0, BrakingAcceleration(robot, nu0, 0.2), nobody_near)
+
+
+@pytest.mark.parametrize("predictor", ["orca_kkt", "cvmm", "react"])
+def test_react_filter_holds_people_where_measured(ridgeback, predictor):
+    scenario, robot = ridgeback
+    scenario = dataclasses.replace(
+        scenario,
+        safety=dataclasses.replace(scenario.safety, backup_filter=True),
+        prediction=dataclasses.replace(scenario.prediction, predictor=predictor),
+    )
+    controller = MpcController.FromScenario(robot, scenario)
+    assert controller.backup_filter.people_move == (predictor != "react")

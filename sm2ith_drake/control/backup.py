@@ -100,7 +100,11 @@ class BackupFilter:
         margin: float,
         walls=(),
         wall_margin: float = 0.0,
+        people_move: bool = True,
     ):
+        """``people_move`` False holds every person where measured (for
+        React, whose plans predict nothing)."""
+        self.people_move = people_move
         self.robot = robot
         self.period = period
         self.reach = human_radius + margin
@@ -120,6 +124,8 @@ class BackupFilter:
             return True
         p = np.asarray(humans.positions, dtype=float)
         v = np.nan_to_num(np.asarray(humans.velocities, dtype=float))
+        if not self.people_move:
+            v = np.zeros_like(v)
         keep = np.all(np.isfinite(p), axis=1)
         if not np.any(keep):
             return True

@@ -213,6 +213,8 @@ class MpcController:
                 margin=self.safety.backup_margin,
                 walls=segments,
                 wall_margin=0.5 * self.safety.obstacle_margin,
+                # React predicts nothing: people held where measured.
+                people_move=self.predictor is None or self.predictor.name != "react",
             )
         self.recovery = Recovery(
             robot,
