@@ -354,8 +354,9 @@ class SafetyConfig:
     # Optional (off by default; "safe" mode only): the backup-trajectory
     # filter (control/backup.py). A solved step's command, held for one
     # period and followed by braking to a standstill, is checked against
-    # every tracked person moving on at the measured velocity and every
-    # wall; where it would come within backup_margin (m) of a person's disc
+    # every tracked person moving on at the measured velocity (React's:
+    # held where measured) and every wall; where it would come within
+    # backup_margin (m) of a person's disc
     # (human_radius), or within half the obstacle margin of a wall, and
     # nearer than braking at once would, the robot brakes at once instead
     # (README, "Contact in the safe variant").
