@@ -1,4 +1,4 @@
-"""A helper for tests that step an MpcController without the HumanPredictor
+"""Helpers for tests that step an MpcController without the HumanPredictor
 system."""
 
 
@@ -13,3 +13,15 @@ def FirstPrediction(controller, estimate, q0=None, nu0=None):
         warm_start_inputs=controller.WarmStartInputs(controller.InitialState()),
     )
     return prediction
+
+
+def FirstStep(controller, estimate, q0, nu0, targets):
+    """The controller's first step with the people of ``estimate``."""
+    return controller.Step(
+        controller.InitialState(),
+        time_now=0.0,
+        q0=q0,
+        nu0=nu0,
+        targets=targets,
+        prediction=FirstPrediction(controller, estimate, q0, nu0),
+    )

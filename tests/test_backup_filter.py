@@ -7,7 +7,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from first_prediction import FirstPrediction
+from first_prediction import FirstStep
 
 from sm2ith_drake.control.backup import (
     BackupFilter,
@@ -193,16 +193,8 @@ def test_controller_brakes_where_the_filter_refuses(ridgeback, mode):
     nu0[0] = 0.5
     ahead = _PersonAhead(robot, q0, reach, 0.3)
     standing = HumanEstimate(ids=[1], positions=[ahead], velocities=[[0.0, 0.0]])
-    prediction = FirstPrediction(controller, standing, q0, nu0)
     targets = {t.name: np.asarray(t.target, dtype=float) for t in controller.tasks}
-    state = controller.Step(
-        controller.InitialState(),
-        time_now=0.0,
-        q0=q0,
-        nu0=nu0,
-        targets=targets,
-        prediction=prediction,
-    )
+    state = FirstStep(controller, standing, q0, nu0, targets)
     if mode == "safe":
         assert state.record.mode == "filtered"
         assert state.counters.filtered_steps == 1

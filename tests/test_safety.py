@@ -23,7 +23,7 @@ import itertools
 
 import numpy as np
 import pytest
-from first_prediction import FirstPrediction
+from first_prediction import FirstPrediction, FirstStep
 
 from sm2ith_drake.resources import GetDiagramsDir
 from sm2ith_drake.run.simulation import RunSimulation
@@ -529,13 +529,6 @@ def test_the_extras_move_on_at_their_measured_velocity_except_for_react(model):
 def _FirstStep(controller, estimate, q0, nu0, targets):
     """The controller's first step with the people of ``estimate``; it must
     solve."""
-    state = controller.Step(
-        controller.InitialState(),
-        time_now=0.0,
-        q0=q0,
-        nu0=nu0,
-        targets=targets,
-        prediction=FirstPrediction(controller, estimate, q0, nu0),
-    )
+    state = FirstStep(controller, estimate, q0, nu0, targets)
     assert state.record.mode == "solved"
     return state

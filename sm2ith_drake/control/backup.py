@@ -9,9 +9,8 @@ once: for each person and each wall the command may bring the robot no
 nearer than braking at once would, unless it keeps outside the margin
 throughout (``safety.backup_margin`` beyond a person's disc; half the
 obstacle margin from a wall, the margin's part a route may use, as in the
-recovery). A command that fails is replaced
-by braking at once, unless braking at once would come nearer a wall than
-the command (walls outrank people, as in the plan's slack weights). The
+recovery). A command that fails is replaced by braking at once, unless
+braking at once would come nearer a wall than the command (walls outrank people, as in the plan's slack weights). The
 plan's barrier rows are soft (a squeezed plan pays slack to cross them) and
 hold the robot's motion only at the knots, under a linearization; the
 filter is hard, on the nonlinear distances, samples within each period,
@@ -76,17 +75,6 @@ def _AtRestUntil(q0, states, count: int) -> np.ndarray:
     return np.concatenate([states, pad]) if len(states) else pad
 
 
-def WorstBarriers(robot, times, states, positions, velocities, walls, reach):
-    """Each barrier's smallest value along the sampled motion (states at
-    ``times``): (H,) people, distance − ``reach`` to each person moving on
-    at the measured velocity, and (S,) walls, distance to each wall."""
-    capsules = FloorCapsules(robot, states)
-    P = positions[None] + times[:, None, None] * velocities[None]  # (T, H, 2)
-    people = HumanDistances(robot, states, P, capsules=capsules) - reach
-    wall = WallDistances(robot, states, walls, capsules=capsules)
-    return np.min(people, axis=0), np.min(wall, axis=0)
-
-
 class BackupFilter:
     """Checks a command's committed motion against the tracked people and
     the walls (see the module docstring)."""
@@ -130,49 +118,43 @@ class BackupFilter:
         if not np.any(keep):
             return True
         p, v = p[keep], v[keep]
-        dt = self.period / _SUBSTEPS
         mine = CommittedMotion(self.robot, q0, nu0, u, self.period)
         # Outside the margins throughout its own motion (at least one
         # sample): passes.
         mine = _AtRestUntil(q0, mine, max(len(mine), 1))
-        times = np.arange(1, len(mine) + 1) * dt
-        people, walls = WorstBarriers(
-            self.robot, times, mine, p, v, self.walls, self.reach
-        )
-        if np.all(people >= -_TOLERANCE) and np.all(
-            walls - self.wall_margin >= -_TOLERANCE
-        ):
+        people, walls = self._WorstBarriers(mine, p, v)
+        if np.all(people >= -_TOLERANCE) and np.all(walls >= -_TOLERANCE):
             return True
         # Otherwise against braking at once, both over the same time, each
         # at rest after its motion (a person walking on keeps closing in on
-        # a robot that has stopped).
+        # a robot that has stopped). Braking at once stops no later than
+        # the command, up to rounding, so the command's barriers mostly
+        # stand as computed.
         brake = CommittedMotion(self.robot, q0, nu0, None, self.period)
         count = max(len(mine), len(brake))
-        times = np.arange(1, count + 1) * dt
-        if count > len(mine):  # (braking never outlasts a command: rare)
-            people, walls = WorstBarriers(
-                self.robot,
-                times,
-                _AtRestUntil(q0, mine, count),
-                p,
-                v,
-                self.walls,
-                self.reach,
-            )
-        brake_people, brake_walls = WorstBarriers(
-            self.robot,
-            times,
-            _AtRestUntil(q0, brake, count),
-            p,
-            v,
-            self.walls,
-            self.reach,
+        if count > len(mine):
+            people, walls = self._WorstBarriers(_AtRestUntil(q0, mine, count), p, v)
+        brake_people, brake_walls = self._WorstBarriers(
+            _AtRestUntil(q0, brake, count), p, v
         )
-        walls = walls - self.wall_margin
-        brake_walls = brake_walls - self.wall_margin
         if np.any(brake_walls < np.minimum(walls, 0.0) - _TOLERANCE):
             return True  # braking would be worse against a wall
         return bool(
             np.all(people >= np.minimum(brake_people, 0.0) - _TOLERANCE)
             and np.all(walls >= np.minimum(brake_walls, 0.0) - _TOLERANCE)
+        )
+
+    def _WorstBarriers(self, states, positions, velocities):
+        """Each barrier's smallest value along the sampled motion (states
+        at 1, 2, ... sub-steps from now): (H,) people, distance − reach to
+        each person moving on at ``velocities``, and (S,) walls, distance −
+        wall margin."""
+        times = np.arange(1, len(states) + 1) * (self.period / _SUBSTEPS)
+        capsules = FloorCapsules(self.robot, states)
+        P = positions[None] + times[:, None, None] * velocities[None]  # (T, H, 2)
+        people = HumanDistances(self.robot, states, P, capsules=capsules)
+        walls = WallDistances(self.robot, states, self.walls, capsules=capsules)
+        return (
+            np.min(people, axis=0) - self.reach,
+            np.min(walls, axis=0) - self.wall_margin,
         )

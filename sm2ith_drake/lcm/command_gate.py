@@ -13,7 +13,7 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
 
-from sm2ith_drake.control.mpc_controller import BrakingAcceleration
+from sm2ith_drake.control.backup import BrakingAcceleration
 from sm2ith_drake.lcm.receivers import ReceiverState
 from sm2ith_drake.lcm.sm2ith_lcmtypes import lcmt_sm2ith_robot_command
 
