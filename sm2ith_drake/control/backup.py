@@ -10,9 +10,10 @@ nearer than braking at once would, unless it keeps outside the margin
 throughout (``safety.backup_margin`` beyond a person's disc; half the
 obstacle margin from a wall, the margin's part a route may use, as in the
 recovery). A command that fails is replaced by braking at once, unless
-braking at once would come nearer a wall than the command (walls outrank people, as in the plan's slack weights). The
-plan's barrier rows are soft (a squeezed plan pays slack to cross them) and
-hold the robot's motion only at the knots, under a linearization; the
+braking at once would come nearer a wall than the command (walls outrank
+people, as in the plan's slack weights). The plan's barrier rows are soft
+(a squeezed plan pays slack to cross them) and hold the robot's motion
+only at the knots, under a linearization; the
 filter is hard, on the nonlinear distances, samples within each period,
 and sees the stopping distance, which a one-period check does not (a base
 turning with the arm out takes longer than a period to stop).
