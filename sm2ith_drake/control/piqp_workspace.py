@@ -22,6 +22,15 @@ import scipy.sparse as sp
 from sm2ith_drake.control.profiling import PROFILER
 
 
+def _WithoutZeros(M: sp.csc_matrix) -> sp.csc_matrix:
+    """``M`` without its stored zeros, in new arrays (``M`` shares its index
+    arrays with the workspace's pattern, which must stay whole)."""
+    keep = M.data != 0
+    kept_before = np.concatenate([[0], np.cumsum(keep)])
+    indptr = kept_before[M.indptr].astype(M.indptr.dtype)
+    return sp.csc_matrix((M.data[keep], M.indices[keep], indptr), M.shape)
+
+
 class PiqpWorkspace:
     """A sparse QP with a fixed pattern, solved by PIQP.
 
@@ -110,6 +119,14 @@ class PiqpWorkspace:
         P = sp.csc_matrix((p_values, self._p_indices, self._p_indptr), (self.n, self.n))
         A = self._Matrix(a_values, self._blocks[0])
         G = self._Matrix(a_values, self._blocks[1])
+        if not self.reuse_workspace:
+            # The fixed patterns store every entry that can be nonzero
+            # somewhere (e.g. every joint of a person's nearest-body line);
+            # at one point a quarter to a third of them are exactly zero.
+            # PIQP factors stored zeros as nonzeros, so a fresh set-up gets
+            # the matrices without them (~16 % less PIQP time with 3 people;
+            # an updated workspace needs the fixed pattern).
+            P, A, G = (_WithoutZeros(M) for M in (P, A, G))
         b = lower[self._eq_rows]
         h_l, h_u = lower[self._in_rows], upper[self._in_rows]
         try:
@@ -145,8 +162,12 @@ class PiqpWorkspace:
         return np.array(result.x), name, int(result.info.iter)
 
 
-# sparse_ldlt_eq_cond (equalities condensed into the KKT system) measured
-# ~17 % faster than PIQP's default on the SM²ITH stage QPs. PIQP's default
+# PIQP's default KKT solver, sparse_ldlt, on matrices without stored zeros
+# (PiqpWorkspace.Solve): on the stage QPs of 60 benchmark steps (PIQP 0.7)
+# 20 % less time than sparse_ldlt_eq_cond with their stored zeros (the
+# shipped setting until 2026-11-25) with 3 people, 18 % with 10; 4 % less
+# than sparse_ldlt_eq_cond without them. Both solve the same QPs to within
+# 1e-7 in the same iterations. PIQP's default
 # duality-gap tolerance (1e-8 absolute, 1e-9 relative) was the criterion that
 # ended its iterations: at 1e-6 the SM²ITH stage QPs take ~21 % fewer
 # iterations (21.4 → 16.9 on 124 QPs with 3 people), far tighter than the
@@ -157,5 +178,5 @@ PIQP_DEFAULT_SETTINGS = dict(
     eps_rel=1e-7,
     eps_duality_gap_abs=1e-6,
     eps_duality_gap_rel=1e-6,
-    kkt_solver="sparse_ldlt_eq_cond",
+    kkt_solver="sparse_ldlt",
 )

@@ -22,6 +22,7 @@ from sm2ith_drake.control.profiling import PROFILER
 from sm2ith_drake.diagrams.simulation import MakeSimulation
 from sm2ith_drake.errors import UserError
 from sm2ith_drake.resources import GetDiagramsDir
+from sm2ith_drake.run.realtime import FreezeHeap
 from sm2ith_drake.run.walkers import ScriptedWalkers
 from sm2ith_drake.scenario import ControlPeriod, ScenarioError
 from sm2ith_drake.scenario_loader import ApplyScenarioText, LoadScenarioAndRobot
@@ -148,6 +149,7 @@ def _Simulate(scenario, steps: int):
     simulator = Simulator(diagram)
     ApplySimulatorConfig(scenario.simulator_config, simulator)
     simulator.Initialize()
+    FreezeHeap()
     setup = time.perf_counter() - start
     period = ControlPeriod(scenario.controller)
     instants = []

@@ -24,6 +24,7 @@ from sm2ith_drake.lcm.codecs import MakeCommandMessage
 from sm2ith_drake.lcm.command_gate import MODE_NAMES, MODE_STOP, GateCommand, GateState
 from sm2ith_drake.lcm.sm2ith_lcmtypes import lcmt_sm2ith_robot_command
 from sm2ith_drake.lcm.timing import CommandTiming, StopRequest
+from sm2ith_drake.run.realtime import FreezeHeap
 from sm2ith_drake.scenario import ControlPeriod, Scenario
 from sm2ith_drake.scenario_loader import MakeRobot
 
@@ -97,6 +98,7 @@ def RunHardware(
         reason = "error"
         try:
             simulator.Initialize()
+            FreezeHeap()
             next_report = report_period
             while not stop.requested and root.get_time() < end:
                 simulator.AdvanceTo(min(end, root.get_time() + 0.5))
