@@ -15,6 +15,9 @@ def FreezeHeap() -> None:
     control step take 135 ms. Frozen objects are never walked again; only
     what the run allocates afterwards is (the log's records, a few hundred
     objects per step). Nothing is freed that would have been: the frozen
-    objects were alive."""
+    objects were alive. But cycles among them are never collected once
+    they die, so this is for a process that runs one controller (the
+    benchmark, ``sm2ith hardware``), not for a campaign worker that builds
+    one simulation after another."""
     gc.collect()
     gc.freeze()
