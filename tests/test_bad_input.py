@@ -6,7 +6,6 @@ import subprocess
 import sys
 
 import numpy as np
-import piqp
 import pytest
 from pydrake.common.value import AbstractValue
 from pydrake.systems.analysis import Simulator
@@ -14,6 +13,8 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantValueSource, ConstantVectorSource
 
 from sm2ith_drake.cli import main
+from sm2ith_drake.control.hpipm_workspace import HpipmWorkspace
+from sm2ith_drake.control.piqp_workspace import PiqpWorkspace
 from sm2ith_drake.control.tasks import MakeTask
 from sm2ith_drake.diagrams.control_stack import AddControlStack
 from sm2ith_drake.humans.messages import HumanDetections
@@ -227,42 +228,29 @@ def test_people_starting_inside_the_robot_or_a_wall_warn(start, words, capsys):
 
 
 class _SolverSpy:
-    """Stands in for piqp.SparseSolver: records every QP handed to PIQP and
-    whether any of its numbers was NaN (bounds may be ±inf, never NaN)."""
+    """Wraps the stage QPs' solvers (PIQP's and HPIPM's workspaces): records
+    every QP handed to either and whether any of its numbers was NaN (bounds
+    may be ±inf, never NaN)."""
 
     calls = 0
     nan_calls = 0
 
-    def __init__(self):
-        self._solver = _REAL_SPARSE_SOLVER()
-
-    def _Check(self, args):
-        _SolverSpy.calls += 1
-        for a in args:
-            data = getattr(a, "data", a)  # scipy sparse matrices
-            if a is not None and np.any(np.isnan(np.asarray(data, dtype=float))):
+    @staticmethod
+    def Wrap(solve):
+        def Solve(self, *args):
+            _SolverSpy.calls += 1
+            if any(np.any(np.isnan(np.asarray(a, dtype=float))) for a in args):
                 _SolverSpy.nan_calls += 1
-                return
+            return solve(self, *args)
 
-    def setup(self, *args, **kwargs):
-        self._Check(list(args) + list(kwargs.values()))
-        return self._solver.setup(*args, **kwargs)
-
-    def update(self, *args, **kwargs):
-        self._Check(list(args) + list(kwargs.values()))
-        return self._solver.update(*args, **kwargs)
-
-    def __getattr__(self, name):
-        return getattr(self._solver, name)
-
-
-_REAL_SPARSE_SOLVER = piqp.SparseSolver
+        return Solve
 
 
 @pytest.fixture
 def solver_spy(monkeypatch):
     _SolverSpy.calls = _SolverSpy.nan_calls = 0
-    monkeypatch.setattr(piqp, "SparseSolver", _SolverSpy)
+    for workspace in (PiqpWorkspace, HpipmWorkspace):
+        monkeypatch.setattr(workspace, "Solve", _SolverSpy.Wrap(workspace.Solve))
     return _SolverSpy
 
 

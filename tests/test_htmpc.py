@@ -4,6 +4,7 @@ weighted-sum baseline, fallbacks, and the RTI against the full NLP."""
 import numpy as np
 import pytest
 
+from sm2ith_drake.control import hpipm_library
 from sm2ith_drake.control.mpc_controller import MpcController
 from sm2ith_drake.control.stage_problem import StageResult
 from sm2ith_drake.resources import GetDiagramsDir
@@ -114,12 +115,16 @@ def test_limits_never_exceeded(conflict_runs):
         assert result.metrics["solver_failures"] == 0
 
 
-@pytest.mark.parametrize("max_iter", [1, 0])
-def test_forced_solver_failure_brakes(max_iter):
-    # A robot already moving, with a solver that cannot succeed.
-    piqp = f"{{PIQP: {{max_iter: {max_iter}}}}}"
+@pytest.mark.parametrize("qp_solver, max_iter", [("piqp", 1), ("piqp", 0), ("auto", 1)])
+def test_forced_solver_failure_brakes(qp_solver, max_iter):
+    # A robot already moving, with QP solvers that cannot succeed (auto: the
+    # QPs HPIPM does not solve go to PIQP, which cannot either).
+    if qp_solver != "piqp" and not hpipm_library.Available():
+        pytest.skip("HPIPM is not installed (Python < 3.12)")
+    options = f"{{PIQP: {{max_iter: {max_iter}}}, HPIPM: {{iter_max: {max_iter}}}}}"
     text = (
-        f"{{controller: {{solver_options: {{options: {piqp}}}}}, "
+        f"{{controller: {{qp_solver: {qp_solver}, "
+        f"solver_options: {{options: {options}}}}}, "
         "robot: {initial_nu: [0.5, 0.0, 0.0, 0, 0, 0, 0, 0, 0]}}"
     )
     scenario, result = _run("conflict_ee_over_base", text, duration=2.0)

@@ -10,9 +10,11 @@ from pydrake.solvers import ClarabelSolver, MathematicalProgram
 
 from sm2ith_drake.control.piqp_workspace import (
     PIQP_DEFAULT_SETTINGS,
+    PiqpBuild,
     PiqpWorkspace,
     _WithoutZeros,
 )
+from sm2ith_drake.errors import UserError
 
 N, ROWS = 12, 10
 EQUALITIES = np.array([0, 3])
@@ -43,8 +45,25 @@ def _Clarabel(P, q, A, x_lower, x_upper, lower, upper):
     return result.GetSolution(x)
 
 
+def _Builds():
+    """The PIQP builds this machine can run (generic always)."""
+    builds = ["generic", "auto"]
+    for name in ("avx2", "avx512"):
+        try:
+            PiqpBuild(name)
+            builds.append(name)
+        except UserError:
+            pass
+    return builds
+
+
+@pytest.mark.parametrize("build", ["generic", "auto", "avx2", "avx512"])
 @pytest.mark.parametrize("seed", range(5))
-def test_stored_zeros_do_not_change_the_solution_nor_the_pattern(seed):
+def test_stored_zeros_do_not_change_the_solution_nor_the_pattern(seed, build):
+    """Also: every PIQP build (PiqpWorkspace's instruction_set) solves the
+    same QPs as Clarabel."""
+    if build not in _Builds():
+        pytest.skip(f"PIQP's {build} build does not run on this machine")
     rng = np.random.default_rng(seed)
     p_pattern, a_pattern = _Pattern(rng)
     ws = PiqpWorkspace(
@@ -54,6 +73,7 @@ def test_stored_zeros_do_not_change_the_solution_nor_the_pattern(seed):
         equality_rows=EQUALITIES,
         settings=dict(
             PIQP_DEFAULT_SETTINGS,
+            instruction_set=build,
             eps_abs=1e-9,
             eps_rel=1e-10,
             eps_duality_gap_abs=1e-10,
@@ -98,3 +118,19 @@ def test_without_zeros_keeps_the_matrix_and_leaves_the_input_alone():
         assert np.all(W.data != 0) and W.has_sorted_indices
         np.testing.assert_array_equal(M.indices, indices)
         np.testing.assert_array_equal(M.indptr, indptr)
+
+
+def test_the_generic_build_is_the_default_and_a_bad_one_is_named():
+    assert PIQP_DEFAULT_SETTINGS["instruction_set"] == "generic"
+    assert PiqpBuild("generic").__name__ == "piqp.piqp_python"
+    ws = PiqpWorkspace(
+        num_variables=2,
+        p_pattern=(np.arange(2), np.arange(2)),
+        a_pattern=(np.array([0, 0]), np.array([0, 1])),
+        equality_rows=np.zeros(0, dtype=int),
+        settings=dict(PIQP_DEFAULT_SETTINGS),
+    )
+    assert ws._piqp is PiqpBuild("generic")
+    assert "instruction_set" not in ws.settings  # not handed to PIQP
+    with pytest.raises(UserError, match="instruction_set 'sse9'.*generic"):
+        PiqpBuild("sse9")

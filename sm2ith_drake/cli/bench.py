@@ -27,7 +27,8 @@ def _Bench(args) -> int:
         iters = r["mean_iterations"]
         iters = "n/a" if iters is None else f"{iters:.1f}"
         print(
-            f"{robot:15s} solver={r['solver']} steps={r['steps']}  "
+            f"{robot:15s} solver={r['solver']} qp={r['qp_solver']} "
+            f"steps={r['steps']}  "
             f"median {r['median_ms']:.1f} ms  p95 {r['p95_ms']:.1f} ms  "
             f"p99 {r['p99_ms']:.1f} ms  max {r['max_ms']:.1f} ms  "
             f"first step {r['first_step_ms']:.1f} ms  setup {r['setup_ms']:.0f} ms  "

@@ -68,6 +68,9 @@ HPIPM_DEFAULT_SETTINGS = dict(
 )
 # Stand-in for an infinite bound (its side is masked off).
 _BIG = 1e9
+# How far a row of fixed variables only may lie outside its bounds (the
+# QPs' tolerance).
+_CONSTANT_ROW_TOLERANCE = 1e-6
 
 
 class HpipmWorkspace:
@@ -383,6 +386,15 @@ class _Structure(OcpStructure):
             r[f], a_values[f] * fixed_values[c[f]], minlength=ws.num_rows
         )
         lo, hi = lower - const, upper - const
+        # Rows of fixed variables only (not HPIPM's): within their bounds.
+        e, cr = self.constant_entries, self.constant_rows
+        if cr.size:
+            value = np.bincount(
+                r[e], a_values[e] * fixed_values[c[e]], minlength=ws.num_rows
+            )[cr]
+            tol = _CONSTANT_ROW_TOLERANCE
+            if np.any(value < lower[cr] - tol) or np.any(value > upper[cr] + tol):
+                return None, "primal_infeasible (a row of fixed variables)", 0
         relax = (lo == hi) & ~self.dyn
         lo = np.append(np.where(relax, lo - ws.relaxation, lo), 0.0)
         hi = np.append(np.where(relax, hi + ws.relaxation, hi), 0.0)

@@ -11,15 +11,63 @@ Contexts. Measured with 3 people (bench, Ridgeback–UR10, a loaded 2-core
 machine): step medians within noise either way (150/156 and 189/184 ms
 setup/update), PIQP's setups ~10 % of a step against ~5 % for updates.
 ``reuse_workspace=True`` keeps the old behaviour.
+
+PIQP's wheel ships three builds of the same solver, generic, AVX2 and
+AVX-512, and on import takes the widest the CPU has. The stage QPs are
+small sparse LDLᵀ factorizations, which the wide vector units do not speed
+up: on this project's machine (Xeon, AVX-512; 2026-11-27) the generic build
+took 25–35 % less time per stage QP than the AVX-512 build PIQP picks
+(captured Ridgeback–UR10 QPs, 3 people: 15.2–16.5 against 21.6 ms; 10
+people 98–99 against 133 ms; Stretch 3, 3 people 11.7 against 14.5 ms; the
+AVX2 build in between), in the same iterations, the solutions within 1e-8
+(3 people). The setting ``instruction_set`` (not a PIQP setting) picks the
+build: ``generic`` (the default), ``avx2``, ``avx512``, or ``auto`` (PIQP's
+own choice).
 """
 
 from __future__ import annotations
+
+import importlib
+from functools import cache
 
 import numpy as np
 import piqp
 import scipy.sparse as sp
 
 from sm2ith_drake.control.profiling import PROFILER
+from sm2ith_drake.errors import UserError
+
+# The builds inside PIQP's wheel, by the name the setting takes.
+_PIQP_BUILDS = {
+    "generic": "piqp_python",
+    "avx2": "piqp_python_avx2",
+    "avx512": "piqp_python_avx512",
+}
+
+
+@cache
+def PiqpBuild(instruction_set: str):
+    """The PIQP module of one build (see the module doc); ``auto`` is the
+    one PIQP itself imports."""
+    if instruction_set == "auto":
+        return piqp
+    name = _PIQP_BUILDS.get(instruction_set)
+    if name is None:
+        raise UserError(
+            f"PIQP instruction_set {instruction_set!r}: one of "
+            f"{', '.join(['auto', *_PIQP_BUILDS])}"
+        )
+    if name != "piqp_python" and not getattr(
+        piqp.instruction_set, instruction_set.replace("avx512", "avx512f")
+    ):
+        raise UserError(f"PIQP instruction_set {instruction_set!r}: not on this CPU")
+    try:
+        return importlib.import_module(f"piqp.{name}")
+    except ModuleNotFoundError as e:
+        raise UserError(
+            f"PIQP instruction_set {instruction_set!r}: this PIQP has no such "
+            f"build ({e})"
+        ) from e
 
 
 def _WithoutZeros(M: sp.csc_matrix) -> sp.csc_matrix:
@@ -60,7 +108,8 @@ class PiqpWorkspace:
         workspace instead of setting one up per solve (module doc)."""
         self.n = num_variables
         self.reuse_workspace = reuse_workspace
-        self.settings = settings
+        self.settings = dict(settings)
+        self._piqp = PiqpBuild(self.settings.pop("instruction_set", "generic"))
         # P: upper triangle, CSC; values gathered from a dense matrix.
         rows, cols = p_pattern
         keep = rows <= cols
@@ -131,10 +180,10 @@ class PiqpWorkspace:
         h_l, h_u = lower[self._in_rows], upper[self._in_rows]
         try:
             if self._solver is None or not self.reuse_workspace:
-                solver = piqp.SparseSolver()
+                solver = self._piqp.SparseSolver()
                 for key, value in self.settings.items():
                     if key == "kkt_solver" and isinstance(value, str):
-                        value = getattr(piqp.KKTSolver, value)
+                        value = getattr(self._piqp.KKTSolver, value)
                     setattr(solver.settings, key, value)
                 with PROFILER.Phase("piqp_setup"):
                     solver.setup(P, q, A, b, G, h_l, h_u, x_lower, x_upper)
@@ -173,6 +222,7 @@ class PiqpWorkspace:
 # iterations (21.4 → 16.9 on 124 QPs with 3 people), far tighter than the
 # lexicographic tolerance (1e-3) needs.
 PIQP_DEFAULT_SETTINGS = dict(
+    instruction_set="generic",
     verbose=False,
     eps_abs=1e-6,
     eps_rel=1e-7,
