@@ -363,15 +363,17 @@ def test_proximal_term_damps_the_orca_multipliers_only_if_asked(
     """The RTI's proximal term ½ρ‖z − z̄‖² damps the plan (the robot's
     variables, the people's positions and actions) and, with
     rti_proximal_multipliers (the default), the multipliers of the people's
-    relaxed-ORCA QPs: on the QPs PIQP is given, their Hessian diagonal holds
-    ρ, and nothing without it (they have no cost of their own)."""
+    relaxed-ORCA QPs: on the QPs PIQP is given (forced here: auto hands these
+    small QPs to HPIPM), their Hessian diagonal holds ρ, and nothing without
+    it (they have no cost of their own)."""
     from sm2ith_drake.control.piqp_workspace import PiqpWorkspace
 
     rho = 0.5
     scenario = LoadScenario(
         filename=GetDiagramsDir() / "crossing.scenarios.yaml",
         scenario_name="crossing_ridgeback_ur10_1h",
-        scenario_text=f"{{controller: {{rti_proximal_weight: {rho}, "
+        scenario_text=f"{{controller: {{qp_solver: piqp, "
+        f"rti_proximal_weight: {rho}, "
         f"rti_proximal_multipliers: {str(damp_multipliers).lower()}}}}}",
     )
     diagonals = []

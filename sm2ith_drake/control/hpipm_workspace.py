@@ -28,12 +28,10 @@ ORCA QPs) are kept as two-sided rows widened by ``equality_relaxation``
 bounds. A stage QP that does not have this structure raises ValueError when
 its pattern is built.
 
-Measured (README, Benchmark): with 3 people a control step is ~28 %
-faster in the median (Stretch 3) and 25–35 % in p99 (both robots); with
-10 people HPIPM's dense stage blocks (~160 variables wide) make it ~3×
-slower than PIQP, hence controller.qp_solver auto. Solutions agree with
-PIQP's to ~1e-3 (the stage QPs are degenerate: many solutions within the
-tolerances) and in optimal value to ~1e-6 relative.
+Measured (README, Benchmark): ~3× cheaper per QP than PIQP with 3 people,
+~3× dearer with 10 (dense stage blocks ~160 wide), hence qp_solver auto.
+Solutions agree with PIQP's to ~1e-3 (degenerate QPs) and in optimal value
+to ~1e-6 relative.
 """
 
 from __future__ import annotations
@@ -48,10 +46,9 @@ from sm2ith_drake.control.profiling import PROFILER
 # HPIPM's IPM settings (HPIPM's argument names) and ours.
 HPIPM_DEFAULT_SETTINGS = dict(
     mode="speed_abs",
-    # Measured on the benchmark: the fast mode solves in 18–22 iterations
-    # (p99 29 with 3 people, 40 with 3 + 7) or stalls; a stalled QP goes to
-    # the balanced mode (hpipm; at least 100 iterations) or to PIQP (auto)
-    # after this many.
+    # Measured: the fast mode solves in 18–22 iterations (p99 29 with 3
+    # people, 40 with 3 + 7) or stalls; after this many a QP goes to the
+    # balanced mode (hpipm; at least 100 iterations) or to PIQP (auto).
     iter_max=50,
     mu0=1e4,
     tol_stat=1e-6,
@@ -59,17 +56,15 @@ HPIPM_DEFAULT_SETTINGS = dict(
     tol_ineq=1e-6,
     tol_comp=1e-6,
     equality_relaxation=1e-7,
-    # controller.qp_solver: auto: PIQP for a pattern whose dense per-stage
-    # work (Σ_k w³/3 + g w², w = states + inputs, g = rows of stage k, per
-    # IPM iteration) exceeds this. Measured (README, Benchmark): HPIPM is
-    # faster at ~2.4–3.5e6 (3 people), even at ~1.2–1.5e7 (5) and far
-    # slower at ~7.5e7 (10).
+    # qp_solver auto: PIQP for a pattern whose dense work per IPM iteration
+    # (Σ_k w³/3 + g w², w = states + inputs, g = rows of stage k) exceeds
+    # this. Measured: HPIPM is faster at ~2.4–3.5e6 (3 people), even at
+    # ~1.2–1.5e7 (5) and far slower at ~7.5e7 (10).
     auto_max_work=6e6,
 )
 # Stand-in for an infinite bound (its side is masked off).
 _BIG = 1e9
-# How far a row of fixed variables only may lie outside its bounds (the
-# QPs' tolerance).
+# How far a row of fixed variables may lie outside its bounds (QP tolerance).
 _CONSTANT_ROW_TOLERANCE = 1e-6
 
 
