@@ -144,9 +144,11 @@ def test_hpipm_results_do_not_depend_on_earlier_solves(monkeypatch):
     np.testing.assert_array_equal(z1, z2)
 
 
-def _TinyMpc(span_two_knots: bool, **workspace):
+def _TinyMpc(span_two_knots: bool, fixed_row=None, **workspace):
     """x_{k+1} = x_k + u_k (N = 2, x_0 = 1), ½Σx² + ½Σu², a slack-relaxed
-    lower bound on x_2 and, if asked, a row tying x_0 and x_2."""
+    lower bound on x_2, if asked a row tying x_0 and x_2, and with
+    ``fixed_row`` = (lower, upper) a row lower ≤ x_0 + ν_0 ≤ upper of fixed
+    variables only."""
     layout = VariableLayout(num_positions=1, num_velocities=1, horizon=2)
     q, nu, u = layout.q.ravel(), layout.nu.ravel(), layout.u.ravel()
     s = layout.AddVariables("slack", (1,))
@@ -169,6 +171,8 @@ def _TinyMpc(span_two_knots: bool, **workspace):
     Row([(q[2], 1.0), (s[0], 1.0)], 0.8, np.inf)
     if span_two_knots:
         Row([(q[2], 1.0), (q[0], -1.0)], -1.0, 1.0)
+    if fixed_row is not None:
+        Row([(q[0], 1.0), (nu[0], 1.0)], *fixed_row)
     ws = HpipmWorkspace(
         num_variables=n,
         p_pattern=(np.arange(n), np.arange(n)),
@@ -246,6 +250,88 @@ def test_auto_hands_a_qp_hpipm_did_not_solve_to_piqp():
         piqp, Values = _Piqp(ws, tolerance=None)
         zp, _, _ = piqp.Solve(Values(p_values), q, *args)
         np.testing.assert_allclose(z, zp, atol=1e-6)
+
+
+@needs_hpipm
+def test_a_row_of_fixed_variables_is_checked_not_handed_to_hpipm():
+    """A row whose variables are all fixed (an empty slot's KKT rows) is
+    not HPIPM's (its IPM stalls on it): within its bounds the QP is solved
+    as without it; outside them the solve says which row is infeasible."""
+    ws, p_values, q, args, _, _ = _TinyMpc(False)
+    z_without, _, _ = ws.Solve(p_values, q, *args)
+    ws, p_values, q, args, _, _ = _TinyMpc(False, fixed_row=(1.5, 2.5))
+    z, status, _ = ws.Solve(p_values, q, *args)
+    assert status == "solved"
+    np.testing.assert_allclose(z, z_without, atol=1e-9)
+    ws, p_values, q, args, _, _ = _TinyMpc(False, fixed_row=(2.5, 3.0))
+    z, status, iterations = ws.Solve(p_values, q, *args)
+    assert z is None and iterations == 0
+    assert status == "primal_infeasible (a row of fixed variables)"
+
+
+@needs_hpipm
+def test_empty_slots_are_pinned_and_hpipm_solves_every_qp_fast(monkeypatch):
+    """One person in three program slots: the two empty slots' positions,
+    actions and ORCA multipliers are pinned at their parked rest (what the
+    forward simulation gives them), and HPIPM's fast mode then solves every
+    stage QP (with them free it stalled on 93 % of them)."""
+    from sm2ith_drake.control.prediction.orca_kkt import OrcaKkt
+
+    checked = []
+    apply_bounds = OrcaKkt.ApplyBounds
+
+    def Checking(self, lower, upper):
+        apply_bounds(self, lower, upper)
+        empty = ~self.active
+        parked = np.broadcast_to(self.p0[empty], self.p[1:, empty].shape)
+        for index, value in ((self.p[1:, empty], parked), (self.a[:, empty], 0.0)):
+            np.testing.assert_array_equal(lower[index], value)
+            np.testing.assert_array_equal(upper[index], value)
+        lam = self.lam[:, empty]
+        assert np.all(lower[lam] == 0.0) and np.all(upper[lam] == 0.0)
+        checked.append(int(empty.sum()))
+
+    modes = []
+    solve = hpipm_library.OcpQp.Solve
+
+    def Recording(self, robust=False):
+        status, iterations = solve(self, robust)
+        modes.append((robust, status))
+        return status, iterations
+
+    monkeypatch.setattr(OrcaKkt, "ApplyBounds", Checking)
+    monkeypatch.setattr(hpipm_library.OcpQp, "Solve", Recording)
+    result = RunSimulation(_Crossing("crossing_ridgeback_ur10_1h"), duration=1.0)
+    assert all(r.mode == "solved" for r in result.log.records)
+    # Before the first prediction every slot is empty.
+    assert checked[-1] == 2 and set(checked) <= {2, 3}
+    assert len(modes) >= 10
+    assert modes == [(False, "solved")] * len(modes)
+
+
+def test_auto_is_piqp_where_hpipm_is_missing(monkeypatch):
+    """qp_solver auto (the default) without HPIPM installed (Python 3.11):
+    PIQP solves every stage QP, no error."""
+    from sm2ith_drake.control import rti_solver
+
+    monkeypatch.setattr(rti_solver, "Available", lambda: False)
+    used = []
+    for cls in (HpipmWorkspace, PiqpWorkspace):
+        solve = cls.Solve
+
+        def Recording(self, *args, _solve=solve, _name=cls.__name__):
+            used.append(_name)
+            return _solve(self, *args)
+
+        monkeypatch.setattr(cls, "Solve", Recording)
+    scenario = LoadScenario(
+        filename=GetDiagramsDir() / "crossing.scenarios.yaml",
+        scenario_name="crossing_stretch3_1h",
+    )
+    assert scenario.controller.qp_solver == "auto"
+    result = RunSimulation(scenario, duration=0.4)
+    assert all(r.mode == "solved" for r in result.log.records)
+    assert used and set(used) == {"PiqpWorkspace"}
 
 
 def test_a_missing_hpipm_says_what_to_install(monkeypatch):
