@@ -5,7 +5,9 @@ the old one (``piqp_avx512``: PIQP alone, the AVX-512 build PIQP picks on
 this machine; commit ead1de4 and e633451, which it reproduces run for run),
 on the same seeds. Also: PIQP's generic build alone, PIQP solved to 1e-9,
 and ``auto`` before empty slots were pinned (its QPs with empty slots went
-to PIQP after HPIPM stalled).
+to PIQP after HPIPM stalled). And the Stretch 3 doorway (``doorway/``,
+SM²ITH at 68c389d with the new default) against the README's figures
+(``../final/doorway.csv``, commit bfe42b6), per person count.
 
     python docs/experiments/qp-solver-auto/summary.py
 """
@@ -35,8 +37,8 @@ def _Rows(name, keep):
     return {r["run_id"]: r for r in ReadRows(HERE / f"{name}.csv") if keep(r)}
 
 
-def Compare(study, new, base, keep=lambda r: True, title=""):
-    a, b = _Rows(f"{study}_{new}", keep), _Rows(f"{study}_{base}", keep)
+def Compare(study, new, base, keep=lambda r: True, title="", rows=None):
+    a, b = rows or (_Rows(f"{study}_{new}", keep), _Rows(f"{study}_{base}", keep))
     ids = sorted(set(a) & set(b))
     print(f"\n{study}: {new} − {base}, {len(ids)} pairs {title}")
     for key in METRICS:
@@ -57,7 +59,41 @@ def Seeds(lo, hi, people="orca"):
     return lambda r: r["people"] == people and lo <= int(r["seed"]) < hi
 
 
+def Doorway():
+    """The Stretch 3 doorway at 68c389d (the new default; ``doorway/``)
+    against the README's figures at bfe42b6 (``../final/doorway.csv``,
+    seeds 0-9, and ``../doorway-30-final/doorway.csv``, the instructed
+    cells' 30 seeds), per method and cell."""
+    new = _Rows("doorway/doorway", lambda r: True)
+    old = {}
+    for name in ("doorway-30-final", "final"):
+        for r in ReadRows(HERE.parent / name / "doorway.csv"):
+            if r["run_id"] in new:
+                old[r["run_id"]] = r
+    for method in ("SM2ITH", "CVMM", "React"):
+        mine = {i: r for i, r in new.items() if r["method"] == method}
+        if not mine:
+            continue
+        Compare("doorway", "auto", "bfe42b6", rows=(mine, old), title=method)
+        cells = sorted({(r["people"], r["variant"]) for r in mine.values()})
+        for people, variant in cells:
+            reached = []
+            for humans in (1, 2, 3, 5):
+                ids = [
+                    i
+                    for i, r in mine.items()
+                    if (r["people"], r["variant"], int(r["humans"]))
+                    == (people, variant, humans)
+                ]
+                reached.append(
+                    f"{sum(int(new[i]['success']) for i in ids)}"
+                    f" vs {sum(int(old[i]['success']) for i in ids)} of {len(ids)}"
+                )
+            print(f"  {people:10s} {variant:5s} by count 1/2/3/5: " + ", ".join(reached))
+
+
 if __name__ == "__main__":
+    Doorway()
     Compare("adversarial", "auto", "piqp_avx512")
     Compare("adversarial", "piqp_generic", "piqp_avx512")
     Compare("banner_cup", "auto", "piqp_avx512", Seeds(0, 40), "(ORCA, seeds 0-39)")
