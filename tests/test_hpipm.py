@@ -310,8 +310,8 @@ def test_empty_slots_are_pinned_and_hpipm_solves_every_qp_fast(monkeypatch):
 
 
 def test_auto_is_piqp_where_hpipm_is_missing(monkeypatch):
-    """qp_solver auto (the default) without HPIPM installed (Python 3.11):
-    PIQP solves every stage QP, no error."""
+    """qp_solver auto without HPIPM installed (Python 3.11): PIQP solves
+    every stage QP, no error."""
     from sm2ith_drake.control import rti_solver
 
     monkeypatch.setattr(rti_solver, "Available", lambda: False)
@@ -327,8 +327,8 @@ def test_auto_is_piqp_where_hpipm_is_missing(monkeypatch):
     scenario = LoadScenario(
         filename=GetDiagramsDir() / "crossing.scenarios.yaml",
         scenario_name="crossing_stretch3_1h",
+        scenario_text="{controller: {qp_solver: auto}}",
     )
-    assert scenario.controller.qp_solver == "auto"
     result = RunSimulation(scenario, duration=0.4)
     assert all(r.mode == "solved" for r in result.log.records)
     assert used and set(used) == {"PiqpWorkspace"}

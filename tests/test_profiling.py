@@ -30,8 +30,8 @@ EXPECTED_PHASES = [
     "linearize:dt_cbf",
     "qp_assembly",
 ]
-# The stage QPs' phases, by the QP solver the benchmark ran with (the
-# default auto is HPIPM for these small QPs where it is installed).
+# The stage QPs' phases, by the QP solver the benchmark ran with (auto is
+# HPIPM for these small QPs where it is installed).
 QP_PHASES = {
     "piqp": ["piqp", "piqp_setup", "piqp_solve", "piqp_kkt_factor", "piqp_kkt_solve"],
     "auto": ["hpipm", "hpipm_ipm"],
