@@ -93,7 +93,8 @@ def Doorway():
                     f"{sum(int(new[i]['success']) for i in ids)}"
                     f" vs {sum(int(old[i]['success']) for i in ids)} of {len(ids)}"
                 )
-            print(f"  {people:10s} {variant:5s} by count 1/2/3/5: " + ", ".join(reached))
+            label = f"  {people:10s} {variant:5s} by count 1/2/3/5: "
+            print(label + ", ".join(reached))
 
 
 def DoorwayPiqp():
