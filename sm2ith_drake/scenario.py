@@ -95,10 +95,11 @@ class ControllerConfig:
     # The rti stage QPs' solver: "piqp" (the default: sparse, every QP),
     # "auto" (HPIPM where its dense stage blocks are small, up to about 3
     # people, PIQP for wider ones and for every QP where HPIPM is not
-    # installed, i.e. Python < 3.12: 2.6x / 1.4x faster with 3 people, but
-    # it changes the Stretch 3 doorway's outcomes for CVMM and React, README,
-    # Benchmark) or "hpipm" (HPIPM's Riccati IPM on the QPs' time structure
-    # for every QP; options as the entry "HPIPM").
+    # installed, i.e. Python < 3.12: 2.1x / 1.25x faster than piqp with 3
+    # people and more exact, but it changes the Stretch 3 doorway's outcomes
+    # for CVMM and React, whose studies ran with piqp; README, Benchmark) or
+    # "hpipm" (HPIPM's Riccati IPM on the QPs' time structure for every QP;
+    # options as the entry "HPIPM").
     qp_solver: str = "piqp"
     # Sequential QP iterations per stage and control step (rti only): the
     # most passes a step may take. A pass after the first runs only while

@@ -312,9 +312,7 @@ def test_empty_slots_are_pinned_and_hpipm_solves_every_qp_fast(monkeypatch):
 def test_auto_is_piqp_where_hpipm_is_missing(monkeypatch):
     """qp_solver auto without HPIPM installed (Python 3.11): PIQP solves
     every stage QP, no error."""
-    from sm2ith_drake.control import rti_solver
-
-    monkeypatch.setattr(rti_solver, "Available", lambda: False)
+    monkeypatch.setattr(hpipm_library, "Available", lambda: False)
     used = []
     for cls in (HpipmWorkspace, PiqpWorkspace):
         solve = cls.Solve

@@ -79,6 +79,13 @@ def Available() -> bool:
     return True
 
 
+def StageQpSolver(qp_solver: str) -> str:
+    """The solver controller.qp_solver runs the stage QPs with: auto is
+    piqp for every QP where HPIPM is not installed (it comes with Python
+    >= 3.12 only, comma-deps-acados)."""
+    return "piqp" if qp_solver == "auto" and not Available() else qp_solver
+
+
 def _Memory(size) -> ctypes.Array:
     return ctypes.create_string_buffer(max(int(size), 1))
 

@@ -15,7 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from sm2ith_drake.control.groups import ConstraintGroup
-from sm2ith_drake.control.hpipm_library import Available, Library
+from sm2ith_drake.control.hpipm_library import Library, StageQpSolver
 from sm2ith_drake.control.hpipm_workspace import HpipmWorkspace
 from sm2ith_drake.control.piqp_workspace import PIQP_DEFAULT_SETTINGS, PiqpWorkspace
 from sm2ith_drake.control.profiling import PROFILER
@@ -63,7 +63,7 @@ class RtiStageSolver:
         self._shared = self._problem.shared_constraints
         self._lex = self._problem.lexicographic_groups
         self._cost = self._problem.cost_groups
-        self._qp_solver = qp_solver
+        self._qp_solver = StageQpSolver(qp_solver)
         # PIQP's settings (the solver_options entry "PIQP"), and HPIPM's
         # ("HPIPM") for qp_solver hpipm and auto.
         self._settings = dict(PIQP_DEFAULT_SETTINGS)
@@ -71,10 +71,6 @@ class RtiStageSolver:
         self._hpipm_settings = dict(hpipm_options or {})
         if qp_solver == "hpipm":
             Library()  # HpipmUnavailable, with what to install, if missing
-        elif qp_solver == "auto" and not Available():
-            # HPIPM comes with Python >= 3.12 only (comma-deps-acados):
-            # elsewhere auto is PIQP for every QP.
-            self._qp_solver = "piqp"
         # Not a PIQP setting: whether to update one PIQP workspace instead of
         # setting one up per solve (PiqpWorkspace; off: reproducible runs).
         self._reuse_workspace = bool(self._settings.pop("reuse_workspace", False))

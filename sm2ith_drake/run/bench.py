@@ -18,7 +18,7 @@ import time
 import numpy as np
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 
-from sm2ith_drake.control.hpipm_library import Available
+from sm2ith_drake.control.hpipm_library import StageQpSolver
 from sm2ith_drake.control.profiling import PROFILER
 from sm2ith_drake.diagrams.simulation import MakeSimulation
 from sm2ith_drake.errors import UserError
@@ -112,13 +112,8 @@ def RunBenchmark(
         "humans": humans,
         "predictor": predictor if humans else "none",
         "solver": solver,
-        # The stage QPs' solver (controller.qp_solver; auto is PIQP alone
-        # where HPIPM is not installed).
-        "qp_solver": (
-            "piqp"
-            if scenario.controller.qp_solver == "auto" and not Available()
-            else scenario.controller.qp_solver
-        ),
+        # The stage QPs' solver (auto is PIQP alone without HPIPM).
+        "qp_solver": StageQpSolver(scenario.controller.qp_solver),
         "rti_iterations": scenario.controller.rti_iterations,
         "max_neighbors": scenario.prediction.max_neighbors,
         "scenario_text": scenario_text,
