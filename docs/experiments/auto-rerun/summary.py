@@ -6,7 +6,13 @@ totals and paired differences with bootstrap CIs.
     sm2ith experiment adversarial --variant paper,safe --people orca,instructed,social_force --jobs 2 --out docs/experiments/auto-rerun --scenario_text '{controller: {qp_solver: auto}}'
     sm2ith experiment pursuer --variant paper,safe --jobs 2 --out docs/experiments/auto-rerun --scenario_text '{controller: {qp_solver: auto}}'
     sm2ith experiment banner_cup --variant paper,safe --people orca,instructed,social_force --jobs 2 --out docs/experiments/auto-rerun --scenario_text '{controller: {qp_solver: auto}}'
+    sm2ith experiment pick_and_place --variant paper,safe --people orca,instructed,social_force --jobs 2 --out docs/experiments/auto-rerun --scenario_text '{controller: {qp_solver: auto}}'
+    sm2ith experiment doorway --variant paper,safe --people orca,instructed,social_force --jobs 2 --out docs/experiments/auto-rerun --scenario_text '{controller: {qp_solver: auto}}'
     python docs/experiments/auto-rerun/summary.py
+
+(auto is the default since 2026-11-27: the --scenario_text changes nothing
+there.) The README's tables: python docs/experiments/final/summary.py
+docs/experiments/auto-rerun
 """  # noqa: E501
 
 from pathlib import Path
@@ -50,5 +56,5 @@ def Compare(study):
 
 
 if __name__ == "__main__":
-    for study in ("adversarial", "pursuer", "banner_cup"):
+    for study in ("adversarial", "pursuer", "banner_cup", "pick_and_place", "doorway"):
         Compare(study)

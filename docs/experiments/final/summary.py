@@ -1,9 +1,11 @@
-"""The README's doorway and contact tables from this directory's CSVs.
+"""The README's doorway, findings and contact tables from this directory's
+CSVs, or from another study directory's.
 
-python summary.py
+python summary.py [DIRECTORY]
 """
 
 import json
+import sys
 from collections import defaultdict
 from pathlib import Path
 
@@ -11,7 +13,7 @@ from sm2ith_drake.experiments.campaign import ReadRows
 from sm2ith_drake.experiments.findings import FindingRows
 from sm2ith_drake.experiments.studies import STUDIES
 
-HERE = Path(__file__).resolve().parent
+HERE = Path(sys.argv[1] if len(sys.argv) > 1 else Path(__file__).parent).resolve()
 PEOPLE = ("orca", "instructed", "social_force")
 VARIANTS = ("paper", "safe")
 COUNTS = (1, 2, 3, 5)
