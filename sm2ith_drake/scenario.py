@@ -92,15 +92,14 @@ class ControllerConfig:
     # Drake SolverOptions; the entry "PIQP" configures the rti QPs (any PIQP
     # setting, e.g. {PIQP: {max_iter: 50}}); "SNOPT" / "Ipopt" the NLPs.
     solver_options: SolverOptions = field(default_factory=SolverOptions)
-    # The rti stage QPs' solver: "piqp" (the default: sparse, every QP),
-    # "auto" (HPIPM where its dense stage blocks are small, up to about 3
-    # people, PIQP for wider ones and for every QP where HPIPM is not
-    # installed, i.e. Python < 3.12: 2.1x / 1.25x faster than piqp with 3
-    # people and more exact, but it changes the Stretch 3 doorway's outcomes
-    # for CVMM and React, whose studies ran with piqp; README, Benchmark) or
-    # "hpipm" (HPIPM's Riccati IPM on the QPs' time structure for every QP;
-    # options as the entry "HPIPM").
-    qp_solver: str = "piqp"
+    # The rti stage QPs' solver: "auto" (the default: HPIPM where its dense
+    # stage blocks are small, up to about 3 people, PIQP for wider ones and
+    # for every QP where HPIPM is not installed, i.e. Python < 3.12; with 3
+    # people ~2x / ~1.3x faster than piqp and more exact; the studies were
+    # re-run with it, README, What we measured), "piqp" (sparse, every QP;
+    # the default until 2026-11-27) or "hpipm" (HPIPM's Riccati IPM on the
+    # QPs' time structure for every QP; options as the entry "HPIPM").
+    qp_solver: str = "auto"
     # Sequential QP iterations per stage and control step (rti only): the
     # most passes a step may take. A pass after the first runs only while
     # the last one has not converged: its plan's predicted human actions are
