@@ -53,7 +53,11 @@ def main():
             others = {m: Success(rows, m, variant) for m in ("CVMM", "React")}
             keys = sorted(set(s).intersection(*others.values()))
             totals = " / ".join(
-                f"{m} {int(sum(d[k] for k in keys))}"
+                f"{m} {int(sum(d[k] for k in keys))} ("
+                + "/".join(
+                    str(int(sum(d[k] for k in keys if k[0] == c))) for c in COUNTS
+                )
+                + ")"
                 for m, d in (("SM²ITH", s), *others.items())
             )
             print(f"\n{label}, {variant}: {len(keys)} paired runs; arrivals {totals}")
