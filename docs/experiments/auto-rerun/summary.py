@@ -65,12 +65,16 @@ def Verdicts():
         paths = [HERE / f"{name}.csv", HERE.parent / "final" / f"{name}.csv"]
         if not study.findings or not all(p.exists() for p in paths):
             continue
+        rows = [ReadRows(p) for p in paths]
+        if len(rows[0]) < len(rows[1]):
+            print(f"\n{name}: {len(rows[0])} of {len(rows[1])} runs, not compared")
+            continue
         new, old = (
             {
                 (e["key"], e["claim"], e["humans"], e["people"], e["variant"]): e
-                for e in FindingRows(study, ReadRows(p))
+                for e in FindingRows(study, r)
             }
-            for p in paths
+            for r in rows
         )
         for key in sorted(set(new) & set(old), key=str):
             total += 1
