@@ -230,6 +230,15 @@ class PredictionConfig:
     # Human limits in the prediction model.
     max_speed: float = 1.5
     max_acceleration: float = 2.0
+    # Each person's own top speed in the model (not in the paper): with a
+    # factor > 0, a person's speed limit is factor × their measured speed
+    # (the larger of the measured and preferred velocities' norms), at least
+    # max_speed_floor and at most max_speed. 0: max_speed for everyone. A
+    # model that lets a person walking 0.6 m/s dodge at 1.5 m/s lets the
+    # plan count on an escape the person cannot make (a traced doorway
+    # contact: README, Contact in the safe variant).
+    max_speed_factor: float = 0.0
+    max_speed_floor: float = 0.5
     # Slack penalties M of the relaxed ORCA QP (acceleration, half-planes).
     slack_weight_acceleration: float = 10.0
     slack_weight_velocity: float = 100.0

@@ -258,12 +258,19 @@ def _ValidatePeople(scenario: Scenario) -> None:
         "slack_weight_velocity",
         "complementarity_relaxation",
         "preferred_velocity_time_constant",
+        "max_speed_factor",
+        "max_speed_floor",
         "max_humans",
         "max_neighbors",
         "max_extra_humans",
         "neighbor_hysteresis",
     ):
         _NonNegative(getattr(pr, name), f"prediction.{name}")
+    if pr.max_speed_factor > 0 and not pr.max_speed_floor <= pr.max_speed:
+        raise ScenarioError(
+            f"prediction.max_speed_floor ({pr.max_speed_floor}) must not exceed "
+            f"prediction.max_speed ({pr.max_speed})"
+        )
     if not 0 <= pr.robot_share <= 1:
         raise ScenarioError(
             f"prediction.robot_share must be in [0, 1], got {pr.robot_share}"

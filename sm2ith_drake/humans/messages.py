@@ -80,6 +80,9 @@ class HumanPrediction:
     # Measured (estimated) velocities and the model's preferred velocities.
     velocities: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     preferred_velocities: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    # The model's speed limit of each slot's person (H,) (empty: the
+    # configured max_speed for everyone; PredictionConfig.max_speed_factor).
+    max_speeds: np.ndarray = field(default_factory=lambda: np.zeros(0))
     positions: np.ndarray = field(default_factory=lambda: np.zeros((1, 0, 2)))
     neighbors: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), dtype=int))
     actions: np.ndarray | None = None

@@ -287,7 +287,8 @@ def relaxed_orca_actions(
         v_pref: preferred velocities (B, 2).
         v_current: current velocities v_t (B, 2).
         normals, offsets: agent half-planes n_iᵀa ≥ ρ_i, (B, A, 2) and (B, A).
-        max_speed, max_accel, time_step: a_max, acc_max, Δt.
+        max_speed, max_accel, time_step: a_max (one for all, or (B,): one
+            per human), acc_max, Δt.
         slack_weights: (M_a, M_v).
         static_normals, static_offsets: static half-planes (B, S, 2), (B, S).
     """
@@ -352,7 +353,8 @@ def relaxed_orca_actions(
         stationarity_residual=np.linalg.norm(gradient(a, e, za, zv), axis=1),
     )
     # The same feasibility test as relaxed_orca_action's.
-    constrained = np.einsum("bk,bk->b", a, a) > max_speed**2 + 1e-12
+    vmax = np.broadcast_to(np.asarray(max_speed, dtype=float), (B,))
+    constrained = np.einsum("bk,bk->b", a, a) > vmax**2 + 1e-12
     constrained |= np.any(np.einsum("bsk,bk->bs", no, a) < rho_o - 1e-10, axis=1)
     for b in np.flatnonzero(constrained):
         sol = relaxed_orca_action(
@@ -360,7 +362,7 @@ def relaxed_orca_actions(
             v_t[b],
             n[b],
             rho[b],
-            max_speed=max_speed,
+            max_speed=float(vmax[b]),
             max_accel=max_accel,
             time_step=time_step,
             slack_weights=slack_weights,

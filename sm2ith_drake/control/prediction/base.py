@@ -34,6 +34,14 @@ def ConstantVelocityPrediction(
     return p0[None] + k * v0[None]
 
 
+def PredictionMaxSpeeds(prediction: HumanPrediction, default: float) -> np.ndarray:
+    """(H,) the model's speed limit of each slot: the prediction's own
+    (``max_speeds``) or ``default`` for every slot where it has none."""
+    H = len(prediction.slot_ids)
+    speeds = np.asarray(prediction.max_speeds, dtype=float).reshape(-1)
+    return speeds.copy() if speeds.size == H else np.full(H, float(default))
+
+
 class Predictor:
     """The common part: the position variables, pinned to the prediction."""
 
@@ -50,6 +58,7 @@ class Predictor:
         self.p0 = ParkedPositions(H)
         self.v0 = np.zeros((H, 2))
         self.v_pref = np.zeros((H, 2))
+        self.max_speed = np.full(H, float(config.max_speed))
         self.guarded = np.zeros(H, dtype=bool)
         self.positions = HeldPrediction(self.p0, horizon)
         # The people without a slot that the barrier keeps out of.
@@ -75,6 +84,7 @@ class Predictor:
         self.p0 = self.positions[0]
         self.v0 = np.asarray(prediction.velocities, dtype=float)
         self.v_pref = np.asarray(prediction.preferred_velocities, dtype=float)
+        self.max_speed = PredictionMaxSpeeds(prediction, self.config.max_speed)
         guarded = np.asarray(prediction.guarded, dtype=bool)
         self.guarded = guarded if guarded.shape == self.active.shape else self.active
         E = self.extra_active.size

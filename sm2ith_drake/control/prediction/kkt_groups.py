@@ -34,7 +34,7 @@ def KktTerms(pred, z, v, n, rho, no, rho_o):
         - np.einsum("khi,khid->khd", lam_i, n)
         - einsum("kho,khod->khd", lam_o, no)
     )
-    c_s = np.sum(a * a, axis=-1) - cfg.max_speed**2
+    c_s = np.sum(a * a, axis=-1) - pred.max_speed[None] ** 2
     c_a = (
         np.sum((a - v) ** 2, axis=-1)
         - (pred.dt * cfg.max_acceleration) ** 2

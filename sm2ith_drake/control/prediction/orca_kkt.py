@@ -258,5 +258,6 @@ def _PredictionConsistency(predictor, z, layout):
         rho[:, active].reshape(N * B, A),
         no[:, active].reshape(N * B, S, 2),
         rho_o[:, active].reshape(N * B, S),
+        predictor.max_speed[np.tile(active, N)],
     )
     return np.linalg.norm(sol.velocity.reshape(N, B, 2) - a[:, active], axis=-1)

@@ -198,18 +198,19 @@ class OrcaModel:
             drho_o = np.zeros((T, H, 0, 2))
         return (n, rho, no, rho_o), (dn, drho, dno, drho_o), body
 
-    def SolveHumanQps(self, v_pref, v, n, rho, no, rho_o):
+    def SolveHumanQps(self, v_pref, v, n, rho, no, rho_o, max_speed=None):
         """The relaxed-ORCA QPs (humans/relaxed_orca.py) of B humans,
         batched: their preferred and current velocities v_pref, v (B, 2) and
         half-planes (agents n (B, A, 2), ρ (B, A); static no (B, S, 2),
-        ρ_o (B, S))."""
+        ρ_o (B, S)); ``max_speed``: their speed limits (B,) (None: the
+        configured one)."""
         cfg = self.config
         return relaxed_orca_actions(
             v_pref,
             v,
             n,
             rho,
-            max_speed=cfg.max_speed,
+            max_speed=cfg.max_speed if max_speed is None else max_speed,
             max_accel=cfg.max_acceleration,
             time_step=self.dt,
             slack_weights=(cfg.slack_weight_acceleration, cfg.slack_weight_velocity),
@@ -231,6 +232,8 @@ class OrcaModel:
         v = slots.v0.copy()
         active = np.nonzero(slots.active)[0]
         v_pref = slots.v_pref[active]
+        max_speed = getattr(slots, "max_speed", None)
+        max_speed = None if max_speed is None else max_speed[active]
         for k in range(N):
             p = positions[k]
             with PROFILER.Phase("orca_lines"):
@@ -247,6 +250,7 @@ class OrcaModel:
                     rho[0, active],
                     no[0, active],
                     rho_o[0, active],
+                    max_speed,
                 )
             a[active] = sol.velocity
             lam[active] = np.concatenate(

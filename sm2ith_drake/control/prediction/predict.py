@@ -32,6 +32,7 @@ from sm2ith_drake.control.prediction.slots import (
     AssignSlots,
     DefaultNeighbors,
     FilterPreferredVelocities,
+    PersonalMaxSpeeds,
     PredictedNow,
     PredictorState,
     SelectNeighbors,
@@ -149,6 +150,7 @@ class HumanPredictorModel:
                 self.human_radius,
                 lookahead=self.N * self.dt,
             )
+        slots.max_speed = PersonalMaxSpeeds(slots, cfg)
         neighbors = state.neighbors
         actions = multipliers = shares = None
         evidence = {}
@@ -191,6 +193,7 @@ class HumanPredictorModel:
             active=slots.active,
             velocities=slots.v0,
             preferred_velocities=slots.v_pref,
+            max_speeds=slots.max_speed,
             positions=positions,
             neighbors=neighbors,
             actions=actions,

@@ -29,6 +29,7 @@ reproduces it.
 
 import numpy as np
 
+from sm2ith_drake.control.prediction.base import PredictionMaxSpeeds
 from sm2ith_drake.humans.messages import HumanEstimate, HumanPrediction
 
 
@@ -85,6 +86,7 @@ def ShareObservations(
             rho[0, slots],
             no[0, slots],
             rho_o[0, slots],
+            PredictionMaxSpeeds(last, model.config.max_speed)[slots],
         )
         actions.append(sol.velocity)
     a0, a1 = actions

@@ -64,6 +64,9 @@ class HumanSlots:
     p0: np.ndarray  # (H, 2) positions (parked where empty)
     v0: np.ndarray  # (H, 2) velocities (0 where empty)
     v_pref: np.ndarray  # (H, 2) preferred velocities (0 where empty)
+    # The model's speed limit per slot (H,) (PersonalMaxSpeeds); None: the
+    # configured max_speed.
+    max_speed: np.ndarray | None = None
     dropped: int = 0  # tracked people neither in a slot nor an extra
     # People without a slot whom the barrier still keeps out of (E of them,
     # PredictionConfig.max_extra_humans): id (−1: none), position, velocity.
@@ -103,6 +106,24 @@ def FilterPreferredVelocities(
                 out[hid] = old
             continue
         out[hid] = np.array(v, dtype=float) if old is None else old + alpha * (v - old)
+    return out
+
+
+def PersonalMaxSpeeds(slots: HumanSlots, config) -> np.ndarray:
+    """(H,) each slot's speed limit in the ORCA model: ``config.max_speed``,
+    or with ``config.max_speed_factor`` > 0 that factor times the person's
+    measured speed (the larger norm of their measured and preferred
+    velocities), within [max_speed_floor, max_speed]."""
+    H = len(slots.slot_ids)
+    out = np.full(H, float(config.max_speed))
+    if config.max_speed_factor > 0:
+        speed = np.maximum(
+            np.linalg.norm(slots.v0, axis=1), np.linalg.norm(slots.v_pref, axis=1)
+        )
+        own = np.clip(
+            config.max_speed_factor * speed, config.max_speed_floor, config.max_speed
+        )
+        out = np.where(slots.active, own, out)
     return out
 
 
