@@ -311,6 +311,15 @@ class SafetyConfig:
     # by up to 2.3 cm. (With predicted people who avoided the base only, 3
     # steps had caused a 31 cm hit in one adversarial run: README.)
     guard_steps: int = 3
+    # Hold the guard over at least the base's stopping time (not in the
+    # paper): max(guard_steps, ⌈stopping time / time_step⌉) steps, where the
+    # stopping time is the slowest translational axis's top speed over its
+    # acceleration limit (Ridgeback–UR10 1.1 s: 6 steps of 0.2 s; Stretch
+    # 3 0.6 s: 3, as guard_steps). A plan that counts on a person giving
+    # way can otherwise build up speed toward them that the guarded steps
+    # cannot brake (two traced doorway contacts of the Ridgeback–UR10 at
+    # its top speed: README, Contact in the safe variant).
+    guard_stopping_time: bool = False
     # Whom the guard holds: a person whose measured position has deviated
     # from the last plan's prediction for them by more than guard_deviation
     # (m) at a control step, for the guard_hold (s) after it. People who

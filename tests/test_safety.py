@@ -532,3 +532,46 @@ def _FirstStep(controller, estimate, q0, nu0, targets):
     state = FirstStep(controller, estimate, q0, nu0, targets)
     assert state.record.mode == "solved"
     return state
+
+
+@pytest.mark.parametrize(
+    "robot_name, stopping, steps", [("ridgeback_ur10", 1.1, 6), ("stretch3", 0.6, 3)]
+)
+def test_guard_stopping_time_holds_the_guard_until_the_base_can_stop(
+    robot_name, stopping, steps
+):
+    """safety.guard_stopping_time: the guard covers the base's stopping time
+    from its top speed (Ridgeback–UR10 1.1 m/s at 1.0 m/s², Stretch 3 0.3
+    m/s at 0.5 m/s²), in the program's DT-CBF rows; guard_steps 0 stays off
+    and the flag off keeps guard_steps."""
+    from sm2ith_drake.control.mpc_controller import MpcController
+    from sm2ith_drake.robots import MobileManipulator
+    from sm2ith_drake.robots.planar_base import BaseStoppingTime
+    from sm2ith_drake.scenario import (
+        ControllerConfig,
+        PredictionConfig,
+        SafetyConfig,
+        TaskConfig,
+    )
+
+    robot = MobileManipulator(robot_name)
+    assert BaseStoppingTime(robot) == pytest.approx(stopping)
+
+    def rows(**safety):
+        controller = MpcController(
+            robot,
+            [TaskConfig(kind="base_position", target=[2.0, 0.0])],
+            ControllerConfig(),
+            prediction=PredictionConfig(predictor="orca_kkt", max_humans=1),
+            safety=SafetyConfig(**safety),
+        )
+        cbf = controller.program.cbf
+        assert cbf.num_guard == cbf.guard_steps * robot.capsule_radii.size
+        return cbf.guard_steps
+
+    assert rows(guard_stopping_time=True) == steps
+    assert rows(guard_stopping_time=False) == 3
+    assert rows(guard_stopping_time=True, guard_steps=0) == 0
+    assert rows(guard_stopping_time=True, guard_steps=8) == 8
+    # Only the guarded (interactive) prediction gets the rows.
+    assert rows(guard_stopping_time=True, mode="paper") == 0

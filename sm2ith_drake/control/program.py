@@ -44,7 +44,11 @@ from sm2ith_drake.control.robot_groups import (
     TaskErrorGroup,
 )
 from sm2ith_drake.control.tasks import Task
-from sm2ith_drake.robots.planar_base import NUM_BASE_POSITIONS, ArmVelocityIndex
+from sm2ith_drake.robots.planar_base import (
+    NUM_BASE_POSITIONS,
+    ArmVelocityIndex,
+    BaseStoppingTime,
+)
 from sm2ith_drake.scenario import SafetyConfig
 
 # Exact-penalty weights of constraint slacks (large against task costs of
@@ -56,6 +60,17 @@ from sm2ith_drake.scenario import SafetyConfig
 # capsule 16 cm into the door jamb).
 SLACK_LINEAR_WEIGHT = 1e3
 SLACK_QUADRATIC_WEIGHT = 1e4
+
+
+def GuardSteps(safety: SafetyConfig, robot, time_step: float) -> int:
+    """The steps the guard holds (SafetyConfig.guard_steps, with
+    guard_stopping_time at least the base's stopping time in steps)."""
+    steps = int(safety.guard_steps)
+    if safety.guard_stopping_time and steps > 0:
+        # (A hair of tolerance: 0.6 s of 0.2 s steps is 3 steps, not 4.)
+        stopping = int(np.ceil(BaseStoppingTime(robot) / time_step - 1e-9))
+        steps = max(steps, stopping)
+    return steps
 
 
 class MpcProgram:
@@ -128,7 +143,7 @@ class MpcProgram:
                 # against people moving on (SafetyConfig.guard_deviation):
                 # CVMM's prediction already is that motion.
                 guard_steps=(
-                    safety.guard_steps
+                    GuardSteps(safety, robot, time_step)
                     if predictor is not None
                     and predictor.name == "orca_kkt"
                     and safety.mode == "safe"

@@ -14,6 +14,16 @@ def NumBaseVelocities(robot) -> int:
     return robot.num_velocities - (robot.num_positions - NUM_BASE_POSITIONS)
 
 
+def BaseStoppingTime(robot) -> float:
+    """How long the base takes to stop from its top speed at its
+    acceleration limit, the slowest of its translational axes (v_x, v_y of
+    a holonomic base; v of a differential drive) (s)."""
+    axes = NumBaseVelocities(robot) - 1
+    speed = np.maximum(np.abs(robot.nu_lower[:axes]), np.abs(robot.nu_upper[:axes]))
+    limit = np.asarray(robot.model.base_acceleration_limit, dtype=float)[:axes]
+    return float(np.max(speed / limit))
+
+
 def ArmVelocityIndex(robot, arm_position_index):
     """The ν index of the arm joint at q index ``arm_position_index``."""
     return arm_position_index + robot.num_velocities - robot.num_positions
