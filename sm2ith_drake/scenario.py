@@ -315,11 +315,14 @@ class SafetyConfig:
     # paper): max(guard_steps, ⌈stopping time / time_step⌉) steps, where the
     # stopping time is the slowest translational axis's top speed over its
     # acceleration limit (Ridgeback–UR10 1.1 s: 6 steps of 0.2 s; Stretch
-    # 3 0.6 s: 3, as guard_steps). A plan that counts on a person giving
-    # way can otherwise build up speed toward them that the guarded steps
-    # cannot brake (two traced doorway contacts of the Ridgeback–UR10 at
-    # its top speed: README, Contact in the safe variant).
-    guard_stopping_time: bool = False
+    # 3 0.6 s: 3, as guard_steps, so the same controller). A plan that
+    # counts on a person giving way can otherwise build up speed toward
+    # them that the guarded steps cannot brake: two traced doorway contacts
+    # of the Ridgeback–UR10 at its top speed (241 and 260 mm). Measured on
+    # its SM²ITH `safe` runs (180, paired): robot-closing contacts 2 → 0,
+    # clearance up, time to goal up by 0.2–3 s (README, Contact in the
+    # safe variant). The default since 2026-11-27; false: guard_steps.
+    guard_stopping_time: bool = True
     # Whom the guard holds: a person whose measured position has deviated
     # from the last plan's prediction for them by more than guard_deviation
     # (m) at a control step, for the guard_hold (s) after it. People who

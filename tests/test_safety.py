@@ -313,6 +313,7 @@ def test_guard_holds_over_its_steps_against_a_person_who_does_not_yield():
 
     def barrier(guard_steps):
         safety.guard_steps = guard_steps
+        safety.guard_stopping_time = False  # guard_steps as given
         safety.static_guard_steps = 0  # the moving guard alone
         controller = MpcController(
             robot,
@@ -569,6 +570,7 @@ def test_guard_stopping_time_holds_the_guard_until_the_base_can_stop(
         assert cbf.num_guard == cbf.guard_steps * robot.capsule_radii.size
         return cbf.guard_steps
 
+    assert rows() == steps  # the default
     assert rows(guard_stopping_time=True) == steps
     assert rows(guard_stopping_time=False) == 3
     assert rows(guard_stopping_time=True, guard_steps=0) == 0
