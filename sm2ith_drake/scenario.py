@@ -13,7 +13,11 @@ from pydrake.solvers import SolverOptions
 from pydrake.systems.analysis import SimulatorConfig
 
 from sm2ith_drake.scenario_hardware import HardwareConfig
-from sm2ith_drake.scenario_options import ReciprocityConfig, RecoveryConfig
+from sm2ith_drake.scenario_options import (
+    ReciprocityConfig,
+    RecoveryConfig,
+    SafetyConfig,
+)
 
 TASK_KINDS = (
     "ee_position",
@@ -236,7 +240,8 @@ class PredictionConfig:
     # max_speed_floor and at most max_speed. 0: max_speed for everyone. A
     # model that lets a person walking 0.6 m/s dodge at 1.5 m/s lets the
     # plan count on an escape the person cannot make (a traced doorway
-    # contact: README, Contact in the safe variant).
+    # contact). Measured with 1.2 on 580 runs and not kept: contacts with
+    # ORCA people rose in banner/cup and pick-and-place (README, People).
     max_speed_factor: float = 0.0
     max_speed_floor: float = 0.5
     # Slack penalties M of the relaxed ORCA QP (acceleration, half-planes).
@@ -286,106 +291,6 @@ class PredictionConfig:
     # Turn a v_pref that walks into a wall onto the nearest free line (the
     # person steers for the opening; control/prediction/intent.py).
     steer_around_walls: bool = False
-
-
-@dataclass
-class SafetyConfig:
-    """DT-CBF collision avoidance (eq. smith_avoid_coll)."""
-
-    # h(x_{k+1}) ≥ (1 − γ) h(x_k), γ ∈ (0, 1].
-    gamma: float = 0.3
-    # Extra clearance to humans and static obstacles (m).
-    human_margin: float = 0.1
-    obstacle_margin: float = 0.05
-    # Radius the controller assumes for a tracked human (m).
-    human_radius: float = 0.3
-    # Also hold the barrier over the first guard_steps steps against every
-    # human moving on at its measured velocity, whatever the prediction
-    # expects: an interactive model may count on people giving way, but the
-    # robot never closes in on one who does not faster than the barrier
-    # allows (0: off; 1: the first step only). More steps keep the plan from
-    # building up speed toward a person that a later first step cannot
-    # brake. Measured on the three studies (150 runs) with the predicted
-    # people avoiding the robot's nearest body: with 3 steps 2 runs brushed
-    # a person, by ≤ 0.34 cm; with 1 step 3 of the 60 banner/cup runs did,
-    # by up to 2.3 cm. (With predicted people who avoided the base only, 3
-    # steps had caused a 31 cm hit in one adversarial run: README.)
-    guard_steps: int = 3
-    # Hold the guard over at least the base's stopping time (not in the
-    # paper): max(guard_steps, ⌈stopping time / time_step⌉) steps, where the
-    # stopping time is the slowest translational axis's top speed over its
-    # acceleration limit (Ridgeback–UR10 1.1 s: 6 steps of 0.2 s; Stretch
-    # 3 0.6 s: 3, as guard_steps, so the same controller). A plan that
-    # counts on a person giving way can otherwise build up speed toward
-    # them that the guarded steps cannot brake: two traced doorway contacts
-    # of the Ridgeback–UR10 at its top speed (241 and 260 mm). Measured on
-    # its SM²ITH `safe` runs (180, paired): robot-closing contacts 2 → 0,
-    # clearance up, time to goal up by 0.2–3 s (README, Contact in the
-    # safe variant). The default since 2026-11-27; false: guard_steps.
-    guard_stopping_time: bool = True
-    # Whom the guard holds: a person whose measured position has deviated
-    # from the last plan's prediction for them by more than guard_deviation
-    # (m) at a control step, for the guard_hold (s) after it. People who
-    # move as predicted keep the interactive prediction alone, so the guard
-    # does not turn SM²ITH into CVMM. React predicts nothing and CVMM's
-    # prediction already is the guard's motion, so neither is guarded.
-    # 0: every person, always (the guard of earlier versions).
-    guard_deviation: float = 0.05
-    guard_hold: float = 1.0
-    # Optional (0: off, the default): the guard also holds, for guard_hold,
-    # a person whose measured gap to the robot's nearest body (surface to
-    # surface) is below guard_gap (m), so someone already inside the
-    # barrier's margin is not closed in on by trusting a prediction that
-    # has them give way. A person who keeps not yielding by less than
-    # guard_deviation per step is otherwise never held, and the plan can
-    # creep into them (the doorway study: 36 cm in one run). With 0.1 on the
-    # doorway (Stretch 3, ORCA people, seeds 0–9, 1/2/3/5 people, 40 runs):
-    # as many arrivals (21), as many runs with contact (20 vs 19), fewer
-    # with the robot closing in (13 vs 16), the deepest contact 2.7 cm
-    # instead of 10 cm. Not yet the default: measured on that cell only
-    # (README, "Contact in the safe variant").
-    guard_gap: float = 0.0
-    # Optional (0: off, the default): also hold the barrier over the first
-    # static_guard_steps steps against every tracked person standing still
-    # where measured, for SM²ITH and CVMM (React's barrier already is
-    # this), so a prediction that has a person move away never lets the
-    # robot close in on where they are now faster than the barrier allows.
-    # Measured with 2 steps on the doorway (Stretch 3, ORCA people, seeds
-    # 0–9, 1/2/3/5 people): SM²ITH reached the goal in 20 of 40 runs (21
-    # without), touched someone in 21 (19) and closed in itself during a
-    # contact in 14 (16); CVMM 23/21/6 (27/23/7). The contacts
-    # it left are squeezes between two people or a person and a wall, where
-    # every barrier cannot hold at once (README, "Contact in the safe
-    # variant"). Not the default.
-    static_guard_steps: int = 0
-    # "safe": the shipped safety mechanism on top of the paper's DT-CBF (the
-    # guards above); "paper": the paper's formulation, the DT-CBF against the
-    # prediction only (guard_steps and static_guard_steps ignored). Studies
-    # run both variants.
-    mode: str = "safe"
-    # Exact-penalty weights (per metre) of the barrier rows' slacks against
-    # people and walls; walls must outrank people (README, Doorway).
-    human_slack_weight: float = 1e4
-    obstacle_slack_weight: float = 1e6
-    # The barrier rows where the plan is already inside a barrier's margin
-    # (h_k < 0 at the linearization point), which only plans that need
-    # slack reach: "decay" keeps the paper's row h_{k+1} ≥ (1 − γ) h_k
-    # there too, so a plan that is inside pays per step only for going
-    # deeper faster than the decay (a squeezed plan may sweep an arm
-    # through a person's margin); "exit" asks h_{k+1} ≥ 0, so the slack
-    # paid is the depth at every step (README, Doorway).
-    inside_barrier: str = "decay"
-    # Optional (off by default; "safe" mode only): the backup-trajectory
-    # filter (control/backup.py). A solved step's command, held for one
-    # period and followed by braking to a standstill, is checked against
-    # every tracked person moving on at the measured velocity (React's:
-    # held where measured) and every wall; where it would come within
-    # backup_margin (m) of a person's disc
-    # (human_radius), or within half the obstacle margin of a wall, and
-    # nearer than braking at once would, the robot brakes at once instead
-    # (README, "Contact in the safe variant").
-    backup_filter: bool = False
-    backup_margin: float = 0.1
 
 
 @dataclass

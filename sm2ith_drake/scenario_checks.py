@@ -17,7 +17,7 @@ import sys
 
 import numpy as np
 
-from sm2ith_drake.geometry import segment_closest_points
+from sm2ith_drake.geometry import point_segment_distance_2d
 from sm2ith_drake.robots.models import MODELS
 from sm2ith_drake.scenario import (
     HUMAN_BEHAVIORS,
@@ -414,10 +414,8 @@ def _StartOverlaps(scenario: Scenario, robot, q0) -> list[str]:
     ends = kin.capsule_points[0, :, :, :2]
     for i, h in enumerate(scenario.humans):
         p = np.asarray(h.start, dtype=float)
-        gaps = [
-            _PointSegmentDistance(p, a, b) - r - h.radius
-            for (a, b), r in zip(ends, robot.capsule_radii, strict=True)
-        ]
+        reach = robot.capsule_radii + h.radius
+        gaps = point_segment_distance_2d(ends[:, 0], ends[:, 1], p)[0] - reach
         c = int(np.argmin(gaps))
         if gaps[c] < 0:
             out.append(
@@ -427,11 +425,12 @@ def _StartOverlaps(scenario: Scenario, robot, q0) -> list[str]:
             )
         for k, o in enumerate(scenario.obstacles):
             vertices = np.asarray(o.vertices, dtype=float)
-            segments = list(zip(vertices[:-1], vertices[1:], strict=True))
-            if len(vertices) >= 3:
-                segments.append((vertices[-1], vertices[0]))
-            d = min(_PointSegmentDistance(p, a, b) for a, b in segments)
-            inside = len(vertices) >= 3 and _InsidePolygon(p, vertices)
+            closed = len(vertices) >= 3  # a polygon; else a polyline
+            a, b = vertices[:-1], vertices[1:]
+            if closed:
+                a, b = vertices, np.roll(vertices, -1, axis=0)
+            d = float(point_segment_distance_2d(a, b, p)[0].min())
+            inside = closed and _InsidePolygon(p, vertices)
             if inside or d < h.radius:
                 depth = d + h.radius if inside else h.radius - d
                 out.append(
@@ -439,11 +438,6 @@ def _StartOverlaps(scenario: Scenario, robot, q0) -> list[str]:
                     f"the person overlaps it by {depth:.2f} m"
                 )
     return out
-
-
-def _PointSegmentDistance(p, a, b) -> float:
-    _, _, c1, c2 = segment_closest_points(p, p, a, b)  # p as a point segment
-    return float(np.linalg.norm(c1 - c2))
 
 
 def _InsidePolygon(p, vertices) -> bool:
