@@ -219,7 +219,9 @@ class OrcaModel:
         )
 
     def ForwardSimulate(self, slots, neighbors, robot: RobotView, p0=None):
-        """Rolls the humans in ``slots`` (a HumanSlots) forward with the
+        """Rolls the humans in ``slots`` (a HumanSlots, or the OrcaKkt
+        predictor, which has the same p0, v0, v_pref, active and max_speed)
+        forward with the
         standalone relaxed-ORCA QP against the robot's trajectory ``robot``
         (a RobotView of steps 0 … N−1). Returns positions (N+1, H, 2),
         actions (N, H, 2) and multipliers (N, H, R): an exact KKT point of
@@ -232,8 +234,7 @@ class OrcaModel:
         v = slots.v0.copy()
         active = np.nonzero(slots.active)[0]
         v_pref = slots.v_pref[active]
-        max_speed = getattr(slots, "max_speed", None)
-        max_speed = None if max_speed is None else max_speed[active]
+        max_speed = None if slots.max_speed is None else slots.max_speed[active]
         for k in range(N):
             p = positions[k]
             with PROFILER.Phase("orca_lines"):
