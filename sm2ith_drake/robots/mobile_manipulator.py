@@ -35,12 +35,8 @@ from pydrake.multibody.tree import (
 )
 
 from sm2ith_drake.resources import GetModelsDir
-from sm2ith_drake.robots.body_steps import (
-    PRISMATIC,
-    REVOLUTE,
-    WELD,
-    ReadBodySteps,
-)
+from sm2ith_drake.robots.body_steps import ReadBodySteps
+from sm2ith_drake.robots.kinematics_kernel import PackedSteps
 from sm2ith_drake.robots.models import BASE_KINDS, MODELS
 from sm2ith_drake.robots.packaged import PREPARERS, AddPackagePaths
 
@@ -57,10 +53,6 @@ class Kinematics:
     # Capsule segment endpoints in the world and their Jacobians w.r.t. q.
     capsule_points: np.ndarray  # (K, C, 2, 3)
     capsule_jacobians: np.ndarray  # (K, C, 2, 3, n)
-
-
-def _Skew(a):
-    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
 
 
 class MobileManipulator:
@@ -118,6 +110,13 @@ class MobileManipulator:
             )
         self._ReadCapsules()
         self._PruneSteps()
+        self._packed = PackedSteps(
+            self._steps,
+            self._num_bodies,
+            np.concatenate([[self._ee_slot], self._capsule_slots.reshape(-1)]),
+            np.concatenate([self._p_BE[None], self._capsule_local.reshape(-1, 3)]),
+            self._ancestors,
+        )
         moved = self._ancestors[self._capsule_slots].any(axis=1).astype(float)
         self.capsule_joint_masks = moved @ np.abs(self.plant_positions_from_q) > 0
 
@@ -366,82 +365,18 @@ class MobileManipulator:
         if n != self.num_positions:
             raise ValueError(f"q needs {self.num_positions} entries, got {n}")
         qp = qs @ self.plant_positions_from_q.T  # plant positions (K, n_plant)
-        n_plant = qp.shape[1]
-        R = np.empty((self._num_bodies, K, 3, 3))
-        p = np.empty((self._num_bodies, K, 3))
-        axes = np.zeros((K, n_plant, 3))  # world axis of each plant position
-        origins = np.zeros((K, n_plant, 3))  # a point on each revolute axis
-        eye = np.broadcast_to(np.eye(3), (K, 3, 3))
-        for st in self._steps:
-            if st.parent < 0:
-                R_WF = np.broadcast_to(st.R_PF, (K, 3, 3))
-                p_WF = np.broadcast_to(st.p_PF, (K, 3))
-            else:
-                R_WP, p_WP = R[st.parent], p[st.parent]
-                R_WF = R_WP @ st.R_PF
-                p_WF = p_WP + R_WP @ st.p_PF
-            col = st.column
-            if st.kind == WELD:
-                R_WM, p_WM = R_WF, p_WF
-            elif st.kind == REVOLUTE:
-                theta = qp[:, col]
-                A = _Skew(st.axis_F)
-                s, c = np.sin(theta)[:, None, None], np.cos(theta)[:, None, None]
-                R_FM = eye + s * A + (1.0 - c) * (A @ A)
-                R_WM, p_WM = R_WF @ R_FM, p_WF
-                axes[:, col] = R_WF @ st.axis_F
-                origins[:, col] = p_WF
-            elif st.kind == PRISMATIC:
-                axis_W = R_WF @ st.axis_F
-                R_WM = R_WF
-                p_WM = p_WF + axis_W * qp[:, col, None]
-                axes[:, col] = axis_W
-            else:  # planar base (x, y, θ), F = world frame
-                theta = qp[:, col + 2]
-                c, s = np.cos(theta), np.sin(theta)
-                R_FM = np.zeros((K, 3, 3))
-                R_FM[:, 0, 0], R_FM[:, 0, 1] = c, -s
-                R_FM[:, 1, 0], R_FM[:, 1, 1] = s, c
-                R_FM[:, 2, 2] = 1.0
-                p_FM = np.zeros((K, 3))
-                p_FM[:, 0], p_FM[:, 1] = qp[:, col], qp[:, col + 1]
-                R_WM = R_WF @ R_FM
-                p_WM = p_WF + np.einsum("kij,kj->ki", R_WF, p_FM)
-                axes[:, col] = R_WF[:, :, 0]
-                axes[:, col + 1] = R_WF[:, :, 1]
-                axes[:, col + 2] = R_WF[:, :, 2]
-                origins[:, col + 2] = p_WM
-            R[st.body] = R_WM @ st.R_MC
-            p[st.body] = p_WM + R_WM @ st.p_MC
-
         # Points: the end effector, then both ends of every capsule.
-        slots = np.concatenate([[self._ee_slot], self._capsule_slots.reshape(-1)])
-        local = np.concatenate([self._p_BE[None], self._capsule_local.reshape(-1, 3)])
-        points = p[slots].transpose(1, 0, 2) + np.einsum(
-            "bkij,bj->kbi", R[slots], local
-        )  # (K, P, 3)
-        jac = self._PointJacobians(points, axes, origins, self._ancestors[slots])
-        C = len(self.capsules)
+        points, jac_plant, origins = self._packed.Evaluate(qp, self._revolute_column)
+        # ∂p/∂q = ∂p/∂(plant positions) · plant_positions_from_q.
+        jac = jac_plant @ self.plant_positions_from_q
+        C, n = len(self.capsules), self.num_positions
         return Kinematics(
             p_WE=points[:, 0],
             J_WE=jac[:, 0],
-            p_WB=p[self._base_slot].copy(),
+            p_WB=origins[:, self._base_slot],
             capsule_points=points[:, 1:].reshape(K, C, 2, 3),
             capsule_jacobians=jac[:, 1:].reshape(K, C, 2, 3, n),
         )
-
-    def _PointJacobians(self, points, axes, origins, masks):
-        """(K, P, 3, n) translational Jacobians w.r.t. q of world points fixed
-        to bodies whose ancestor plant positions are ``masks`` (P, n_plant)."""
-        lever = points[:, :, None, :] - origins[:, None, :, :]  # (K, P, n_plant, 3)
-        cols = np.where(
-            self._revolute_column[None, None, :, None],
-            np.cross(axes[:, None, :, :], lever),
-            axes[:, None, :, :],
-        )
-        cols = cols * masks[None, :, :, None]
-        # ∂p/∂q = ∂p/∂(plant positions) · plant_positions_from_q.
-        return np.einsum("kpjc,jn->kpcn", cols, self.plant_positions_from_q)
 
     def __repr__(self):
         return (
