@@ -9,6 +9,7 @@ import pytest
 import scipy.sparse as sp
 
 from sm2ith_drake.control import hpipm_library
+from sm2ith_drake.control.batched_solve import solve_batched
 from sm2ith_drake.control.groups import INPUT, OTHER, STATE, VariableLayout
 from sm2ith_drake.control.hpipm_workspace import HpipmWorkspace
 from sm2ith_drake.control.piqp_workspace import PIQP_DEFAULT_SETTINGS, PiqpWorkspace
@@ -353,3 +354,24 @@ def test_layout_roles_give_each_variable_its_knot():
     assert np.all(role[slack] == OTHER) and np.all(knot[slack] == -1)
     with pytest.raises(ValueError, match="rows"):
         layout.AddVariables("bad", (2, 1), role=STATE)
+
+
+def test_batched_solve_matches_numpy_and_rejects_singular_blocks():
+    rng = np.random.default_rng(5)
+    # General blocks (pivoting needed), and the dynamics' kind: identity
+    # plus a few off-diagonal entries.
+    general = rng.normal(size=(6, 9, 9))
+    dynamics = np.eye(24) + 0.1 * (rng.random((11, 24, 24)) < 0.05)
+    for M in (general, dynamics):
+        rhs = rng.normal(size=M.shape[:2] + (7,))
+        X = solve_batched(M, rhs)
+        np.testing.assert_allclose(X, np.linalg.solve(M, rhs), atol=1e-10)
+        np.testing.assert_allclose(np.einsum("kij,kjr->kir", M, X), rhs, atol=1e-10)
+    singular = general.copy()
+    singular[2, :, 4] = 0.0
+    with pytest.raises(np.linalg.LinAlgError):
+        solve_batched(singular, rng.normal(size=(6, 9, 2)))
+    bad = general.copy()
+    bad[3, 5, 2] = np.nan
+    with pytest.raises(np.linalg.LinAlgError):
+        solve_batched(bad, rng.normal(size=(6, 9, 2)))

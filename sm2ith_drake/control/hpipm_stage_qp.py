@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from sm2ith_drake.control.batched_solve import solve_batched
 from sm2ith_drake.control.hpipm_library import OcpQp
 from sm2ith_drake.control.hpipm_structure import OcpStructure
 from sm2ith_drake.control.profiling import PROFILER
@@ -283,7 +284,7 @@ class HpipmStageQp(OcpStructure):
         rhs = np.concatenate(
             [B["DX"], B["DU"], lo[self.dyn_gather][:, :, None]], axis=2
         )
-        solved = np.linalg.solve(B["DN"], rhs)
+        solved = solve_batched(B["DN"], rhs)
         A_all = np.negative(solved[:, :, :mX], out=F["A"].reshape(K, -1, mX))
         B_all = np.negative(solved[:, :, mX : mX + mU], out=F["B"].reshape(K, -1, mU))
         b_all = solved[:, :, -1]

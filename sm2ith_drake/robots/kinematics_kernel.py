@@ -154,9 +154,7 @@ def forward_kinematics(  # pragma: no cover
                 p_FM[:] = 0.0
                 _Compose(R_WF, p_WF, R_FM, p_FM, R_WM, p_WM)
                 for i in range(3):
-                    axes[col, i] = (
-                        R_WF[i, 0] * a0 + R_WF[i, 1] * a1 + R_WF[i, 2] * a2
-                    )
+                    axes[col, i] = R_WF[i, 0] * a0 + R_WF[i, 1] * a1 + R_WF[i, 2] * a2
                     through[col, i] = p_WF[i]
             elif kind[s] == PRISMATIC:
                 R_WM[:, :] = R_WF
