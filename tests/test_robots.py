@@ -186,6 +186,18 @@ def test_dGnu_dq_matches_finite_differences(name):
     np.testing.assert_allclose(robot.dGnu_dq(q, nu), fd, atol=1e-8)
 
 
+@pytest.mark.parametrize("name", ["ridgeback_ur10", "stretch3"])
+def test_stacked_G_matches_one_configuration_at_a_time(name):
+    robot = MobileManipulator(name)
+    rng = np.random.default_rng(8)
+    qs = _RandomQ(robot, rng, 7)
+    nus = rng.uniform(robot.nu_lower, robot.nu_upper, (7, robot.num_velocities))
+    G, dG = robot.GStack(qs), robot.dGnu_dqStack(qs, nus)
+    for k in range(7):
+        np.testing.assert_array_equal(G[k], robot.G(qs[k]))
+        np.testing.assert_allclose(dG[k], robot.dGnu_dq(qs[k], nus[k]), atol=1e-15)
+
+
 def test_differential_drive_has_no_sideways_velocity(stretch):
     """Whatever ν, the Stretch base velocity is along its heading."""
     rng = np.random.default_rng(2)

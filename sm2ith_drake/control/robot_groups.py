@@ -79,9 +79,9 @@ class DynamicsGroup(ConstraintGroup):
         robot, dt, N = self._robot, self._dt, self._layout.N
         n, m = self._layout.n, self._layout.m
         q, nu, u = point.q, point.nu, point.u
-        G = np.stack([robot.G(q[k]) for k in range(N)])  # (N, n, m)
+        G = robot.GStack(q[:N])  # (N, n, m)
         nu_mid = 0.5 * (nu[:-1] + nu[1:])
-        dG = np.stack([robot.dGnu_dq(q[k], nu_mid[k]) for k in range(N)])  # (N, n, n)
+        dG = robot.dGnu_dqStack(q[:N], nu_mid)  # (N, n, n)
         qdot = np.einsum("knm,km->kn", G, nu_mid)
         g = np.empty(self.num_rows)
         g[self._q_rows.ravel()] = (q[1:] - q[:-1] - dt * qdot).ravel()

@@ -358,6 +358,38 @@ class MobileManipulator:
             out[1, 2] = c * nu[0]
         return out
 
+    def GStack(self, qs: np.ndarray) -> np.ndarray:
+        """G(q) at the K rows of ``qs``, (K, n, m) (as :meth:`G`)."""
+        qs = np.atleast_2d(qs)
+        K, n, m = qs.shape[0], self.num_positions, self.num_velocities
+        c, s = np.cos(qs[:, 2]), np.sin(qs[:, 2])
+        G = np.zeros((K, n, m))
+        arm = np.arange(3, n)
+        if self.base_kind == "holonomic":
+            G[:, 0, 0], G[:, 0, 1], G[:, 1, 0], G[:, 1, 1] = c, -s, s, c
+            G[:, 2, 2] = 1.0
+            G[:, arm, arm] = 1.0
+        else:
+            G[:, 0, 0], G[:, 1, 0], G[:, 2, 1] = c, s, 1.0
+            G[:, arm, arm - 1] = 1.0
+        return G
+
+    def dGnu_dqStack(self, qs: np.ndarray, nus: np.ndarray) -> np.ndarray:
+        """∂(G(q) ν)/∂q at the K rows of ``qs`` and ``nus``, (K, n, n) (as
+        :meth:`dGnu_dq`)."""
+        qs, nus = np.atleast_2d(qs), np.atleast_2d(nus)
+        n = self.num_positions
+        c, s = np.cos(qs[:, 2]), np.sin(qs[:, 2])
+        out = np.zeros((qs.shape[0], n, n))
+        if self.base_kind == "holonomic":
+            vx, vy = nus[:, 0], nus[:, 1]
+            out[:, 0, 2] = -s * vx - c * vy
+            out[:, 1, 2] = c * vx - s * vy
+        else:
+            out[:, 0, 2] = -s * nus[:, 0]
+            out[:, 1, 2] = c * nus[:, 0]
+        return out
+
     def CalcKinematics(self, qs: np.ndarray) -> Kinematics:
         """End-effector and capsule kinematics at the K rows of ``qs``."""
         qs = np.atleast_2d(np.asarray(qs, dtype=float))

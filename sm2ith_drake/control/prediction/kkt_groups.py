@@ -163,11 +163,12 @@ class KktBlocks:
         )
         drv = base[..., 2:4] + body[..., 2:4]  # w.r.t. the base's velocity
         q, nu = e.robot.q, e.robot.nu
-        for k in range(pred.N):
-            G = pred.robot.G(q[k])[:2, : self.nb]
-            dth = pred.robot.dGnu_dq(q[k], nu[k])[:2, 2]
-            J[k, :, rows, self.iq + 2] += drv[k] @ dth
-            J[k, :, rows, self.inu :] += drv[k] @ G
+        N = pred.N
+        G = pred.robot.GStack(q[:N])[:, :2, : self.nb]
+        dth = pred.robot.dGnu_dqStack(q[:N], nu[:N])[:, :2, 2]
+        for k in range(N):
+            J[k, :, rows, self.iq + 2] += drv[k] @ dth[k]
+            J[k, :, rows, self.inu :] += drv[k] @ G[k]
 
     def Evaluate(self, point) -> "KktPointData":
         """Everything both groups need at a point, cached by the point."""

@@ -84,7 +84,7 @@ class OrcaModel:
         agent. ``kin``: the kinematics of configurations whose first T rows
         are q, if the caller has them already."""
         robot = self.robot
-        G = np.stack([robot.G(qk) for qk in q])  # (T, n, m)
+        G = robot.GStack(q)  # (T, n, m)
         if kin is None:
             with PROFILER.Phase("kinematics"):
                 kin = robot.CalcKinematics(q)
