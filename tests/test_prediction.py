@@ -7,6 +7,7 @@ from scipy.optimize import minimize
 
 from sm2ith_drake.control.mpc_controller import MpcController
 from sm2ith_drake.control.prediction.slots import FilterPreferredVelocities
+from sm2ith_drake.humans import kernels
 from sm2ith_drake.humans.half_planes import orca_agent_half_planes
 from sm2ith_drake.humans.messages import HumanEstimate, HumanIntents
 from sm2ith_drake.humans.relaxed_orca import (
@@ -446,6 +447,42 @@ def test_nearest_body_point_derivatives_match_finite_differences(robot_name):
         np.testing.assert_allclose(body.d_dp[0, 0], fd_p, atol=1e-6)
         kinds.add("inside" if np.any(np.abs(fd_p) > 1e-3) else "end")
     assert kinds == {"inside", "end"}
+
+
+@pytest.mark.parametrize("robot_name", ["ridgeback_ur10", "stretch3"])
+def test_compiled_step_lines_are_the_vectorized_half_planes(robot_name):
+    """The forward simulation's compiled lines (kernels.step_half_planes) are
+    OrcaModel.HalfPlanes' to the bit: people near and inside the robot and
+    each other, a wall (and its end), random shares toward the robot."""
+    robot, c = _KktController(robot_name, 4, max_neighbors=2)
+    model = c.predictor.model
+    rng = np.random.default_rng(17)
+    H, A, S = model.num_slots, model.num_agent_lines, model.num_static_lines
+    assert S == 1 and A == 4
+    for trial in range(30):
+        q = robot.default_q + rng.normal(scale=0.4, size=robot.num_positions)
+        nu = rng.uniform(robot.nu_lower, robot.nu_upper)
+        view = model.RobotView(q[None], nu[None])
+        P = q[:2] + rng.uniform(-2.5 if trial % 3 else -0.6, 2.5, (H, 2))
+        V = rng.uniform(-1.5, 1.5, (H, 2))
+        neighbors = np.array(
+            [rng.permutation([j for j in range(H) if j != h])[:2] for h in range(H)]
+        )
+        model.SetRobotShares(rng.uniform(0, 1, H))
+        expected = model.HalfPlanes(P[None], V[None], view, neighbors)
+        got = [
+            np.empty((H, A, 2)),
+            np.empty((H, A)),
+            np.empty((H, S, 2)),
+            np.empty((H, S)),
+        ]
+        kernels.step_half_planes(
+            P, V, neighbors, view.p[0], view.v[0], np.ascontiguousarray(view.ends[0]),
+            view.radii, model._radius, model._share, model.segments,
+            model.human_radius, model.config.tau, model.dt, model.config.tau_obs, *got,
+        )  # fmt: skip
+        for e, g in zip(expected, got, strict=True):
+            np.testing.assert_array_equal(g, e[0])
 
 
 def test_program_grows_linearly_with_the_number_of_people():

@@ -18,6 +18,10 @@ import math
 import numba
 import numpy as np
 
+# point_segment_distance_2d's guard (a point-like segment), for the same
+# arithmetic.
+from sm2ith_drake.geometry import _EPS_SEGMENT
+
 # Guards divisions in the agent lines (degenerate geometry only).
 _EPS = 1e-9
 # Relative resolution of f: a smaller Armijo decrease is roundoff.
@@ -133,9 +137,124 @@ def relaxed_orca_newton(v_pref, v_t, n, rho, r_acc_sq, Ma, Mv):  # pragma: no co
     return out
 
 
+@numba.njit(cache=True)
+def _SegmentPoint(ax, ay, bx, by, px, py):  # pragma: no cover
+    """geometry.point_segment_distance_2d for one point and segment, with
+    the same arithmetic: (distance, closest x, closest y)."""
+    dx, dy = bx - ax, by - ay
+    denom = max(dx * dx + dy * dy, _EPS_SEGMENT)
+    s = min(max(((px - ax) * dx + (py - ay) * dy) / denom, 0.0), 1.0)
+    cx, cy = ax + s * dx, ay + s * dy
+    ex, ey = cx - px, cy - py
+    return math.sqrt(ex * ex + ey * ey), cx, cy
+
+
+@numba.njit(cache=True)
+def step_half_planes(  # pragma: no cover
+    P,
+    V,
+    neighbors,
+    robot_p,
+    robot_v,
+    ends,
+    capsule_radii,
+    radius,
+    share,
+    segments,
+    human_radius,
+    tau,
+    time_step,
+    tau_obs,
+    n,
+    rho,
+    no,
+    rho_o,
+):
+    """The half-planes of H people at one step of a forward simulation
+    (OrcaModel.HalfPlanes with T = 1, the same arithmetic): positions P and
+    velocities V (H, 2), neighbours (H, K); the robot's base position and
+    world velocity (2,), its capsules' floor axes ends (C, 2, 2) and radii
+    (C,); the lines' combined radii (A,) (the last is set here from the
+    nearest body) and shares (H, A); wall segments (S, 2, 2). Writes agent
+    lines n (H, A, 2), ρ (H, A) and static lines no (H, S, 2), ρ_o (H, S)."""
+    H, K = neighbors.shape
+    A = K + 2
+    rel_p = np.empty((H * A, 2))
+    rel_v = np.empty((H * A, 2))
+    R = np.empty(H * A)
+    for h in range(H):
+        px, py = P[h, 0], P[h, 1]
+        vx, vy = V[h, 0], V[h, 1]
+        # The nearest capsule (surface distance; the first of equals).
+        best, bx, by, br = np.inf, 0.0, 0.0, 0.0
+        for c in range(ends.shape[0]):
+            d, cx, cy = _SegmentPoint(
+                ends[c, 0, 0], ends[c, 0, 1], ends[c, 1, 0], ends[c, 1, 1], px, py
+            )
+            if d - capsule_radii[c] < best:
+                best, bx, by, br = d - capsule_radii[c], cx, cy, capsule_radii[c]
+        for a in range(A):
+            i = h * A + a
+            R[i] = radius[a]
+            if a < K:
+                j = neighbors[h, a]
+                ox, oy, ovx, ovy = P[j, 0], P[j, 1], V[j, 0], V[j, 1]
+            elif a == K:
+                ox, oy, ovx, ovy = robot_p[0], robot_p[1], robot_v[0], robot_v[1]
+            else:
+                ox, oy, ovx, ovy = bx, by, robot_v[0], robot_v[1]
+                R[i] = human_radius + br
+            rel_p[i, 0], rel_p[i, 1] = ox - px, oy - py
+            rel_v[i, 0], rel_v[i, 1] = vx - ovx, vy - ovy
+        for s in range(segments.shape[0]):
+            d, cx, cy = _SegmentPoint(
+                segments[s, 0, 0],
+                segments[s, 0, 1],
+                segments[s, 1, 0],
+                segments[s, 1, 1],
+                px,
+                py,
+            )
+            m = max(d, _EPS_SEGMENT)
+            no[h, s, 0] = -((cx - px) / m)
+            no[h, s, 1] = -((cy - py) / m)
+            rho_o[h, s] = -(d - human_radius) / tau_obs
+    u = np.empty((H * A, 2))
+    direction = np.empty((H * A, 2))
+    agent_lines(rel_p, rel_v, R, tau, time_step, u, direction)
+    for h in range(H):
+        for a in range(A):
+            i = h * A + a
+            nx, ny = -direction[i, 1], direction[i, 0]
+            ptx = V[h, 0] + share[h, a] * u[i, 0]
+            pty = V[h, 1] + share[h, a] * u[i, 1]
+            n[h, a, 0], n[h, a, 1] = nx, ny
+            rho[h, a] = nx * ptx + ny * pty
+
+
 def Compile() -> None:
     """Compiles (or loads from the cache) every kernel, so that no control
     step pays for it."""
     one = np.ones((1, 2))
     agent_lines(one, one, np.ones(1), 2.0, 0.1, np.empty((1, 2)), np.empty((1, 2)))
     relaxed_orca_newton(one, one, np.ones((1, 1, 2)), np.ones((1, 1)), 0.1, 1.0, 1.0)
+    step_half_planes(
+        one,
+        one,
+        np.zeros((1, 0), dtype=np.int64),
+        one[0],
+        one[0],
+        np.zeros((1, 2, 2)),
+        np.ones(1),
+        np.ones(2),
+        np.ones((1, 2)),
+        np.zeros((0, 2, 2)),
+        0.3,
+        2.0,
+        0.1,
+        0.5,
+        np.empty((1, 2, 2)),
+        np.empty((1, 2)),
+        np.empty((1, 0, 2)),
+        np.empty((1, 0)),
+    )

@@ -235,11 +235,35 @@ class OrcaModel:
         active = np.nonzero(slots.active)[0]
         v_pref = slots.v_pref[active]
         max_speed = None if slots.max_speed is None else slots.max_speed[active]
+        # The lines of one step at a time, compiled (HalfPlanes' arithmetic).
+        A, S = self.num_agent_lines, self.num_static_lines
+        n, rho = np.empty((1, H, A, 2)), np.empty((1, H, A))
+        no, rho_o = np.empty((1, H, S, 2)), np.empty((1, H, S))
+        nb = np.ascontiguousarray(neighbors, dtype=np.int64).reshape(H, -1)
+        ends = np.ascontiguousarray(robot.ends)
+        robot_p, robot_v = np.ascontiguousarray(robot.p), np.ascontiguousarray(robot.v)
         for k in range(N):
             p = positions[k]
             with PROFILER.Phase("orca_lines"):
-                n, rho, no, rho_o = self.HalfPlanes(
-                    p[None], v[None], robot.Step(k), neighbors
+                kernels.step_half_planes(
+                    p,
+                    v,
+                    nb,
+                    robot_p[k],
+                    robot_v[k],
+                    ends[k],
+                    robot.radii,
+                    self._radius,
+                    self._share,
+                    self.segments,
+                    self.human_radius,
+                    self.config.tau,
+                    self.dt,
+                    self.config.tau_obs,
+                    n[0],
+                    rho[0],
+                    no[0],
+                    rho_o[0],
                 )
             a = np.zeros((H, 2))
             lam = np.zeros((H, R))
