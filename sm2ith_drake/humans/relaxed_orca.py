@@ -31,6 +31,11 @@ from scipy.optimize import minimize, nnls
 
 from sm2ith_drake.geometry import einsum
 from sm2ith_drake.humans.kernels import relaxed_orca_newton
+from sm2ith_drake.humans.relaxed_orca_active_set import (
+    ActiveSetMinimum,
+    PolishActiveSet,
+    Reduced,
+)
 
 _ACTIVE_TOL = 1e-7
 # Relative resolution of f: a smaller Armijo decrease is roundoff.
@@ -50,20 +55,6 @@ class RelaxedOrcaSolution:
     multipliers_slack_velocity: np.ndarray  # μ_v (A,)
     cost: float
     stationarity_residual: float
-
-
-def _Reduced(a, v_pref, v_t, n, rho, r_acc_sq, Ma, Mv):
-    """f(a), its gradient and a (generalized) Hessian."""
-    d = a - v_pref
-    e = a - v_t
-    za = max(0.0, e @ e - r_acc_sq)
-    zv = np.maximum(0.0, rho - n @ a)
-    f = d @ d + Ma * za**2 + Mv * zv @ zv
-    g = 2 * d + 4 * Ma * za * e - 2 * Mv * n.T @ zv
-    Hm = 2 * np.eye(2) + 2 * Mv * (n[zv > 0].T @ n[zv > 0])
-    if za > 0:
-        Hm += 4 * Ma * (za * np.eye(2) + 2 * np.outer(e, e))
-    return f, g, Hm
 
 
 def _Multipliers(a, v_pref, v_t, n, rho, no, rho_o, vmax_sq, r_acc_sq, Ma, Mv):
@@ -94,39 +85,6 @@ def _Multipliers(a, v_pref, v_t, n, rho, no, rho_o, vmax_sq, r_acc_sq, Ma, Mv):
     return lam_a, lam_i, lam_s, lam_o, float(np.linalg.norm(resid))
 
 
-def _PolishActiveSet(a, v_pref, v_t, n, rho, no, rho_o, vmax_sq, r_acc_sq, Ma, Mv):
-    """Newton on the KKT system of the constraints active at a (speed disc
-    ‖a‖² = a_max², static lines n_oᵀa = ρ_o), dropping a constraint whose
-    multiplier turns negative. Returns None if it does not settle."""
-    active = ([-1] if a @ a >= vmax_sq - 1e-6 else []) + [
-        o for o in range(len(rho_o)) if no[o] @ a - rho_o[o] <= 1e-6
-    ]
-    while 0 < len(active) <= 2:
-        x, lam = a.copy(), np.zeros(len(active))
-        for _ in range(20):
-            _, g, Hm = _Reduced(x, v_pref, v_t, n, rho, r_acc_sq, Ma, Mv)
-            # Constraints h_j(x) = 0 with h_s = ‖x‖² − a_max², h_o = ρ_o − n_oᵀx.
-            J = np.array([2 * x if w < 0 else -no[w] for w in active])
-            h = np.array(
-                [x @ x - vmax_sq if w < 0 else rho_o[w] - no[w] @ x for w in active]
-            )
-            for j, w in enumerate(active):
-                if w < 0:
-                    Hm = Hm + 2 * lam[j] * np.eye(2)
-            K = np.block([[Hm, J.T], [J, np.zeros((len(active), len(active)))]])
-            try:
-                sol = np.linalg.solve(K, -np.concatenate([g, h]))
-            except np.linalg.LinAlgError:
-                return None
-            x, lam = x + sol[:2], sol[2:]
-            if np.linalg.norm(sol[:2]) < 1e-15:
-                break
-        if np.all(lam >= -1e-12):
-            return x
-        del active[int(np.argmin(lam))]
-    return None
-
-
 def relaxed_orca_action(
     v_pref,
     v_current,
@@ -139,6 +97,7 @@ def relaxed_orca_action(
     slack_weights,
     static_normals=None,
     static_offsets=None,
+    unconstrained=None,
 ) -> RelaxedOrcaSolution:
     """Solves one human's relaxed-ORCA QP exactly (see the module doc).
 
@@ -149,6 +108,8 @@ def relaxed_orca_action(
         max_speed, max_accel, time_step: a_max, acc_max, Δt.
         slack_weights: (M_a, M_v).
         static_normals, static_offsets: static half-planes (S, 2), (S,).
+        unconstrained: f's unconstrained minimizer, if the caller has it
+            (relaxed_orca_actions' compiled Newton); otherwise found here.
     """
     v_pref = np.asarray(v_pref, dtype=float)
     v_t = np.asarray(v_current, dtype=float)
@@ -172,22 +133,31 @@ def relaxed_orca_action(
         return a @ a <= vmax_sq + 1e-12 and np.all(no @ a >= rho_o - 1e-10)
 
     # Damped Newton on the unconstrained reduced problem.
-    a = v_pref.copy()
-    for _ in range(50):
-        f, g, Hm = _Reduced(a, v_pref, v_t, n, rho, r_acc_sq, Ma, Mv)
+    a = v_pref.copy() if unconstrained is None else np.array(unconstrained, float)
+    for _ in range(0 if unconstrained is not None else 50):
+        f, g, Hm = Reduced(a, v_pref, v_t, n, rho, r_acc_sq, Ma, Mv)
         step = -np.linalg.solve(Hm, g)
         t = 1.0
         while t > 1e-8:
             trial = a + t * step
-            f_trial = _Reduced(trial, v_pref, v_t, n, rho, r_acc_sq, Ma, Mv)[0]
+            f_trial = Reduced(trial, v_pref, v_t, n, rho, r_acc_sq, Ma, Mv)[0]
             if f_trial <= f + 1e-4 * t * (g @ step) + _ROUNDOFF * (1 + abs(f)):
                 break
             t *= 0.5
         a = a + t * step
         if np.linalg.norm(t * step) < 1e-13:
             break
+    constrained = None
     if not feasible(a):
-        # Constrained: SLSQP on the (smooth, convex) reduced problem.
+        # Constrained: a KKT point on the boundary (exact Newton on each
+        # candidate active set), else SLSQP.
+        constrained = ActiveSetMinimum(
+            a, v_pref, v_t, n, rho, no, rho_o, vmax_sq, r_acc_sq, Ma, Mv
+        )
+    if constrained is not None:
+        a = constrained
+    elif not feasible(a):
+        # SLSQP on the (smooth, convex) reduced problem.
         cons = [
             {"type": "ineq", "fun": lambda x: vmax_sq - x @ x, "jac": lambda x: -2 * x}
         ]
@@ -201,9 +171,9 @@ def relaxed_orca_action(
             )
         start = a * min(1.0, max_speed / max(np.linalg.norm(a), 1e-12)) * 0.999
         res = minimize(
-            lambda x: _Reduced(x, v_pref, v_t, n, rho, r_acc_sq, Ma, Mv)[0],
+            lambda x: Reduced(x, v_pref, v_t, n, rho, r_acc_sq, Ma, Mv)[0],
             start,
-            jac=lambda x: _Reduced(x, v_pref, v_t, n, rho, r_acc_sq, Ma, Mv)[1],
+            jac=lambda x: Reduced(x, v_pref, v_t, n, rho, r_acc_sq, Ma, Mv)[1],
             constraints=cons,
             method="SLSQP",
             options={"ftol": 1e-14, "maxiter": 200},
@@ -211,7 +181,7 @@ def relaxed_orca_action(
         a = res.x
         # SLSQP stops with a stationarity residual up to ~1e-5 when the
         # multipliers are large; polish on its active set, keeping the better.
-        polished = _PolishActiveSet(
+        polished = PolishActiveSet(
             a, v_pref, v_t, n, rho, no, rho_o, vmax_sq, r_acc_sq, Ma, Mv
         )
         if polished is not None and feasible(polished):
@@ -229,7 +199,7 @@ def relaxed_orca_action(
     lam_a, lam_i, lam_s, lam_o, resid = _Multipliers(
         a, v_pref, v_t, n, rho, no, rho_o, vmax_sq, r_acc_sq, Ma, Mv
     )
-    f = _Reduced(a, v_pref, v_t, n, rho, r_acc_sq, Ma, Mv)[0]
+    f = Reduced(a, v_pref, v_t, n, rho, r_acc_sq, Ma, Mv)[0]
     return RelaxedOrcaSolution(
         velocity=a,
         slack_acceleration=za,
@@ -328,7 +298,7 @@ def relaxed_orca_actions(
             - 2 * Mv * einsum("ba,bak->bk", zv, n)
         )
 
-    # Damped Newton on f (see _Reduced), row by row, compiled
+    # Damped Newton on f (see Reduced), row by row, compiled
     # (humans/kernels.py).
     a = relaxed_orca_newton(
         np.ascontiguousarray(v_pref),
@@ -368,6 +338,7 @@ def relaxed_orca_actions(
             slack_weights=slack_weights,
             static_normals=no[b],
             static_offsets=rho_o[b],
+            unconstrained=a[b],
         )
         result.velocity[b] = sol.velocity
         result.slack_acceleration[b] = sol.slack_acceleration
