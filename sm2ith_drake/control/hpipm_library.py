@@ -13,8 +13,10 @@ from __future__ import annotations
 import ctypes
 import importlib.util
 import os
+from dataclasses import dataclass
 from functools import cache
 
+import numba
 import numpy as np
 
 from sm2ith_drake.errors import UserError
@@ -84,6 +86,72 @@ def StageQpSolver(qp_solver: str) -> str:
     piqp for every QP where HPIPM is not installed (it comes with Python
     >= 3.12 only, comma-deps-acados)."""
     return "piqp" if qp_solver == "auto" and not Available() else qp_solver
+
+
+# NUL-terminated field names, kept alive for the compiled call loops.
+_FIELD_NAMES: dict = {}
+
+
+def FieldName(field: str) -> int:
+    """The address of ``field`` as a C string (for CallTable)."""
+    if field not in _FIELD_NAMES:
+        _FIELD_NAMES[field] = ctypes.create_string_buffer(field.encode())
+    return ctypes.addressof(_FIELD_NAMES[field])
+
+
+@dataclass
+class CallTable:
+    """Many calls of HPIPM's generic setter d_ocp_qp_set (or getter
+    d_ocp_qp_sol_get) in one compiled loop: field name addresses
+    (FieldName), stages and data addresses into arrays the caller keeps
+    alive. One ctypes call costs ~1 µs of Python; a stage QP makes ~200."""
+
+    fields: np.ndarray  # uint64
+    stages: np.ndarray  # int32
+    addresses: np.ndarray  # uint64
+
+    @staticmethod
+    def Of(calls) -> CallTable:
+        """From (field, stage, address) triples."""
+        fields, stages, addresses = zip(*calls, strict=True) if calls else ((), (), ())
+        return CallTable(
+            np.array([FieldName(f) for f in fields], dtype=np.uint64),
+            np.array(stages, dtype=np.int32),
+            np.array(addresses, dtype=np.uint64),
+        )
+
+
+@cache
+def _CallLoops():
+    """Compiled loops over HPIPM's generic setter and getter (pointer
+    arguments as 64-bit integers). Compiled once per process (~0.5 s: the
+    library's address is a constant of the code, so it is not cached on
+    disk)."""
+    lib = Library()
+    proto = ctypes.CFUNCTYPE(
+        None, ctypes.c_uint64, ctypes.c_int, ctypes.c_uint64, ctypes.c_uint64
+    )
+    set_ = proto(ctypes.cast(lib.d_ocp_qp_set, ctypes.c_void_p).value)
+    get = proto(ctypes.cast(lib.d_ocp_qp_sol_get, ctypes.c_void_p).value)
+
+    # Explicit signatures: compiled here, not at the first call.
+    @numba.njit("void(uint64[::1], int32[::1], uint64[::1], uint64)")
+    def SetAll(fields, stages, addresses, qp):  # pragma: no cover
+        for i in range(fields.size):
+            set_(fields[i], stages[i], addresses[i], qp)
+
+    @numba.njit("void(uint64[::1], int32[::1], uint64, uint64[::1])")
+    def GetAll(fields, stages, sol, addresses):  # pragma: no cover
+        for i in range(fields.size):
+            get(fields[i], stages[i], sol, addresses[i])
+
+    return SetAll, GetAll
+
+
+def Compile() -> None:
+    """Compiles the call loops (once per process), ahead of a controller's
+    first step."""
+    _CallLoops()
 
 
 def _Memory(size) -> ctypes.Array:
@@ -176,12 +244,11 @@ class OcpQp:
             array = np.asfortranarray(value, dtype=np.float64)
         self.Setter(field)(stage, array.ctypes.data, self._qp_address)
 
-    def SetFrom(self, calls) -> None:
-        """Many fields at once: (setter, stage, address) triples whose
-        addresses point into arrays the caller keeps alive."""
-        qp = self._qp_address
-        for setter, stage, address in calls:
-            setter(stage, address, qp)
+    def SetFrom(self, table: CallTable) -> None:
+        """Many fields at once (d_ocp_qp_set's field names)."""
+        _CallLoops()[0](
+            table.fields, table.stages, table.addresses, np.uint64(self._qp_address)
+        )
 
     def Solve(self, robust: bool = False) -> tuple[str, int]:
         """Returns (status, iterations); ``robust``: in the balanced mode."""
@@ -192,9 +259,8 @@ class OcpQp:
         self.lib.d_ocp_qp_ipm_get_iter(ws, ctypes.byref(iterations))
         return STATUS.get(status.value, f"status {status.value}"), iterations.value
 
-    def GetInto(self, calls) -> None:
-        """Solution vectors into caller-kept arrays: (getter, field, stage,
-        address) with getter = lib.d_ocp_qp_sol_get."""
-        sol = ctypes.addressof(self._sol)
-        for getter, field, stage, address in calls:
-            getter(field, stage, sol, address)
+    def GetInto(self, table: CallTable) -> None:
+        """Solution vectors into caller-kept arrays (d_ocp_qp_sol_get's
+        field names: x, u, sl, ...)."""
+        sol = np.uint64(ctypes.addressof(self._sol))
+        _CallLoops()[1](table.fields, table.stages, sol, table.addresses)

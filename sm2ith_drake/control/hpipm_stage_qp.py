@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from sm2ith_drake.control.batched_solve import solve_batched
-from sm2ith_drake.control.hpipm_library import OcpQp
+from sm2ith_drake.control.hpipm_library import CallTable, OcpQp
 from sm2ith_drake.control.hpipm_structure import OcpStructure
 from sm2ith_drake.control.profiling import PROFILER
 
@@ -142,14 +142,15 @@ class HpipmStageQp(OcpStructure):
         self.staging = np.zeros(max(total, 1))
         base, offset = self.staging.ctypes.data, 0
         gathers: dict = {}
-        self.set_calls = []
+        set_calls = []
         for field, k, source, indices in entries:
             positions = offset + np.arange(len(indices))
             gathers.setdefault(source, ([], []))
             gathers[source][0].append(positions)
             gathers[source][1].append(indices)
-            self.set_calls.append((self.qp.Setter(field), k, base + 8 * offset))
+            set_calls.append((field, k, base + 8 * offset))
             offset += len(indices)
+        self.set_calls = CallTable.Of(set_calls)
         # One gather per solve, from all sources laid end to end (then a 0
         # and a 1: the padding and the copies' identity).
         self.source_order = list(sizes)
@@ -210,7 +211,6 @@ class HpipmStageQp(OcpStructure):
         self.C = C.reshape(K, mG, mX)
         self.D = D.reshape(K, mG, mU)
         # The solution: x (free states, not the copies), u, slacks.
-        getter = self.qp.lib.d_ocp_qp_sol_get
         calls, targets, positions, offset = [], [], [], 0
         size = sum(
             len(x) + len(u) + len(s)
@@ -220,16 +220,16 @@ class HpipmStageQp(OcpStructure):
         base = self.out.ctypes.data
         for k in range(K):
             for field, vars_, keep in (
-                (b"x", self.X[k], self.ns[k]),
-                (b"u", self.U[k], len(self.U[k])),
-                (b"sl", self.soft_vars[k], len(self.soft_vars[k])),
+                ("x", self.X[k], self.ns[k]),
+                ("u", self.U[k], len(self.U[k])),
+                ("sl", self.soft_vars[k], len(self.soft_vars[k])),
             ):
                 if len(vars_):
-                    calls.append((getter, field, k, base + 8 * offset))
+                    calls.append((field, k, base + 8 * offset))
                     targets.append(vars_[:keep])
                     positions.append(offset + np.arange(keep))
                     offset += len(vars_)
-        self.get_calls = calls
+        self.get_calls = CallTable.Of(calls)
         self.out_targets = np.concatenate(targets) if targets else np.zeros(0, int)
         self.out_positions = (
             np.concatenate(positions) if positions else np.zeros(0, int)
