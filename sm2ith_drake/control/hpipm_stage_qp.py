@@ -15,6 +15,7 @@ a solve reads is written by that solve or is a constant (padding).
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from sm2ith_drake.control.batched_solve import solve_batched
@@ -210,6 +211,22 @@ class HpipmStageQp(OcpStructure):
         )
         self.C = C.reshape(K, mG, mX)
         self.D = D.reshape(K, mG, mU)
+        # The positions of ``flat`` a solve writes (whole fields, the
+        # entries scattered into the others, the rows the dynamics are
+        # substituted into); the rest keep their values (0, or the padding's
+        # 0 and 1). Only those are gathered per solve, the others staged once.
+        live = np.zeros(self.flat.size, dtype=bool)
+        for name in ("A", "B", "b", "q", "lb", "ub", "lg", "ug", "Zl", "zl"):
+            start = starts[self.source_order.index(name)]
+            live[start : start + sizes[name]] = True
+        for array, first, _, more, _ in self.scatters:
+            if array is self.flat:
+                live[first] = live[more] = True
+        live[self.reset] = True
+        moving = live[self.gather_index]
+        self.gather_to = np.nonzero(moving)[0]
+        self.gather_from = self.gather_index[moving]
+        np.take(self.flat, self.gather_index, out=self.staging[: moving.size])
         # The solution: x (free states, not the copies), u, slacks.
         calls, targets, positions, offset = [], [], [], 0
         size = sum(
@@ -308,9 +325,7 @@ class HpipmStageQp(OcpStructure):
         np.minimum(g_hi.ravel(), _BIG, out=F["ug"])
         np.divide(p_diag, coef**2, out=F["Zl"])
         np.divide(lin, coef, out=F["zl"])
-        np.take(
-            self.flat, self.gather_index, out=self.staging[: self.gather_index.size]
-        )
+        gather(self.staging, self.gather_to, self.flat, self.gather_from)
         qp.SetFrom(self.set_calls)
         with PROFILER.Phase("hpipm_ipm"):
             status, iterations = qp.Solve()
@@ -325,6 +340,20 @@ class HpipmStageQp(OcpStructure):
         if not np.all(np.isfinite(z)):
             return None, "nan", iterations
         return z, status, iterations
+
+
+def Compile() -> None:
+    """Compiles (or loads from the cache) the gather, ahead of a
+    controller's first step."""
+    empty = np.zeros(0, dtype=np.int64)
+    gather(np.zeros(1), empty, np.zeros(1), empty)
+
+
+@numba.njit(cache=True)
+def gather(dst, dst_index, src, src_index):  # pragma: no cover
+    """dst[dst_index] = src[src_index], in one compiled pass."""
+    for i in range(dst_index.size):
+        dst[dst_index[i]] = src[src_index[i]]
 
 
 def _Scatter(dest, src):

@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sm2ith_drake.control import hpipm_library
+from sm2ith_drake.control import hpipm_library, hpipm_stage_qp
 from sm2ith_drake.control.hpipm_stage_qp import HpipmStageQp
 from sm2ith_drake.control.hpipm_structure import OcpStructure
 from sm2ith_drake.control.piqp_workspace import PiqpWorkspace
@@ -88,6 +88,7 @@ class HpipmWorkspace:
     ):
         self.n = num_variables
         hpipm_library.Compile()
+        hpipm_stage_qp.Compile()
         settings = {**HPIPM_DEFAULT_SETTINGS, **settings}
         self.relaxation = float(settings.pop("equality_relaxation"))
         self.max_work = float(settings.pop("auto_max_work"))
