@@ -227,8 +227,8 @@ class RelaxedOrcaBatch:
     multiplier_acceleration: np.ndarray  # λ_a (B,)
     multipliers_agents: np.ndarray  # λ_i (B, A)
     multipliers_static: np.ndarray  # λ_o (B, S)
-    cost: np.ndarray  # (B,)
-    stationarity_residual: np.ndarray  # (B,)
+    cost: np.ndarray | None  # (B,) (None: not asked for)
+    stationarity_residual: np.ndarray | None  # (B,) (idem)
 
 
 def relaxed_orca_actions(
@@ -243,6 +243,7 @@ def relaxed_orca_actions(
     slack_weights,
     static_normals=None,
     static_offsets=None,
+    diagnostics=True,
 ) -> RelaxedOrcaBatch:
     """Solves B independent relaxed-ORCA QPs (one per human) at once.
 
@@ -261,6 +262,8 @@ def relaxed_orca_actions(
             per human), acc_max, Δt.
         slack_weights: (M_a, M_v).
         static_normals, static_offsets: static half-planes (B, S, 2), (B, S).
+        diagnostics: whether to compute each instance's cost and
+            stationarity residual (a forward simulation needs neither).
     """
     v_pref = np.asarray(v_pref, dtype=float).reshape(-1, 2)
     v_t = np.asarray(v_current, dtype=float).reshape(-1, 2)
@@ -318,9 +321,11 @@ def relaxed_orca_actions(
         multiplier_acceleration=2 * Ma * za,
         multipliers_agents=2 * Mv * zv,
         multipliers_static=np.zeros(rho_o.shape),
-        cost=cost(a, za, zv),
+        cost=cost(a, za, zv) if diagnostics else None,
         # Stationarity in a with λ_s = λ_o = 0 is ∇f(a) = 0.
-        stationarity_residual=np.linalg.norm(gradient(a, e, za, zv), axis=1),
+        stationarity_residual=(
+            np.linalg.norm(gradient(a, e, za, zv), axis=1) if diagnostics else None
+        ),
     )
     # The same feasibility test as relaxed_orca_action's.
     vmax = np.broadcast_to(np.asarray(max_speed, dtype=float), (B,))
@@ -347,6 +352,7 @@ def relaxed_orca_actions(
         result.multiplier_acceleration[b] = sol.multiplier_acceleration
         result.multipliers_agents[b] = sol.multipliers_agents
         result.multipliers_static[b] = sol.multipliers_static
-        result.cost[b] = sol.cost
-        result.stationarity_residual[b] = sol.stationarity_residual
+        if diagnostics:
+            result.cost[b] = sol.cost
+            result.stationarity_residual[b] = sol.stationarity_residual
     return result

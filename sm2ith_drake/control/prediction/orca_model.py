@@ -203,7 +203,7 @@ class OrcaModel:
         batched: their preferred and current velocities v_pref, v (B, 2) and
         half-planes (agents n (B, A, 2), ρ (B, A); static no (B, S, 2),
         ρ_o (B, S)); ``max_speed``: their speed limits (B,) (None: the
-        configured one)."""
+        configured one). Without the costs and stationarity residuals."""
         cfg = self.config
         return relaxed_orca_actions(
             v_pref,
@@ -216,6 +216,7 @@ class OrcaModel:
             slack_weights=(cfg.slack_weight_acceleration, cfg.slack_weight_velocity),
             static_normals=no,
             static_offsets=rho_o,
+            diagnostics=False,
         )
 
     def ForwardSimulate(self, slots, neighbors, robot: RobotView, p0=None):
