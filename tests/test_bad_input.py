@@ -243,11 +243,11 @@ class _SolverSpy:
 
     @staticmethod
     def Wrap(solve):
-        def Solve(self, *args):
+        def Solve(self, *args, **kw):
             _SolverSpy.calls += 1
             if any(np.any(np.isnan(np.asarray(a, dtype=float))) for a in args):
                 _SolverSpy.nan_calls += 1
-            return solve(self, *args)
+            return solve(self, *args, **kw)
 
         return Solve
 

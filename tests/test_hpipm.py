@@ -90,9 +90,9 @@ def test_hpipm_solves_the_stage_qps_as_piqp_does(monkeypatch):
     compared = []
     solve = HpipmWorkspace.Solve
 
-    def Comparing(self, p_values, q, a_values, x_lower, x_upper, lower, upper):
+    def Comparing(self, p_values, q, a_values, x_lower, x_upper, lower, upper, **kw):
         args = (a_values, x_lower, x_upper, lower, upper)
-        z, status, iterations = solve(self, p_values, q, *args)
+        z, status, iterations = solve(self, p_values, q, *args, **kw)
         piqp, Values = _Piqp(self)
         zp, status_p, _ = piqp.Solve(Values(p_values), q, *args)
         compared.append(
@@ -130,9 +130,9 @@ def test_hpipm_results_do_not_depend_on_earlier_solves(monkeypatch):
     calls = []
     solve = HpipmWorkspace.Solve
 
-    def Recording(self, *args):
+    def Recording(self, *args, **kw):
         calls.append((self, [np.array(a, copy=True) for a in args]))
-        return solve(self, *args)
+        return solve(self, *args, **kw)
 
     monkeypatch.setattr(HpipmWorkspace, "Solve", Recording)
     RunSimulation(scenario, duration=0.6)
@@ -302,8 +302,8 @@ def test_empty_slots_are_pinned_and_hpipm_solves_every_qp_fast(monkeypatch):
     modes = []
     solve = hpipm_library.OcpQp.Solve
 
-    def Recording(self, robust=False):
-        status, iterations = solve(self, robust)
+    def Recording(self, robust=False, **kw):
+        status, iterations = solve(self, robust, **kw)
         modes.append((robust, status))
         return status, iterations
 
@@ -325,9 +325,9 @@ def test_auto_is_piqp_where_hpipm_is_missing(monkeypatch):
     for cls in (HpipmWorkspace, PiqpWorkspace):
         solve = cls.Solve
 
-        def Recording(self, *args, _solve=solve, _name=cls.__name__):
+        def Recording(self, *args, _solve=solve, _name=cls.__name__, **kw):
             used.append(_name)
-            return _solve(self, *args)
+            return _solve(self, *args, **kw)
 
         monkeypatch.setattr(cls, "Solve", Recording)
     scenario = LoadScenario(
@@ -382,3 +382,36 @@ def test_batched_solve_matches_numpy_and_rejects_singular_blocks():
     bad[3, 5, 2] = np.nan
     with pytest.raises(np.linalg.LinAlgError):
         solve_batched(bad, rng.normal(size=(6, 9, 2)))
+
+
+@needs_hpipm
+def test_warm_passes_start_from_the_same_steps_solution_only(monkeypatch):
+    """controller.rti_warm_passes: a stage QP given the token of its
+    pattern's last solve starts from that solution (fewer iterations, the
+    same solution to the QP's tolerance); any other token starts cold, bit
+    for bit as if nothing had been solved before (a solve never depends on
+    an earlier control step)."""
+    calls = []
+    solve = HpipmWorkspace.Solve
+
+    def Recording(self, *args, **kw):
+        calls.append((self, [np.array(a, copy=True) for a in args]))
+        return solve(self, *args, **kw)
+
+    monkeypatch.setattr(HpipmWorkspace, "Solve", Recording)
+    RunSimulation(_Crossing("crossing_ridgeback_ur10_2h"), duration=0.6)
+    ws, args = calls[-1]
+    cold, _, it_cold = solve(ws, *args, warm_token=None)
+    step = object()
+    first, _, it_first = solve(ws, *args, warm_token=step)
+    again, status, it_again = solve(ws, *args, warm_token=step)
+    assert status == "solved"
+    np.testing.assert_array_equal(first, cold)  # a new token: cold
+    assert it_first == it_cold and it_again < it_cold
+    # The stage QPs are degenerate: a different start ends elsewhere on the
+    # optimal face, within the QP's tolerance (measured up to 4e-3,
+    # docs/benchmark-history.md, HPIPM's warm start).
+    np.testing.assert_allclose(again, cold, atol=5e-3)
+    later, _, it_later = solve(ws, *args, warm_token=object())
+    np.testing.assert_array_equal(later, cold)
+    assert it_later == it_cold

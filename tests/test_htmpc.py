@@ -379,13 +379,13 @@ def test_proximal_term_damps_the_orca_multipliers_only_if_asked(
     diagonals = []
     solve = PiqpWorkspace.Solve
 
-    def Recording(self, p_values, q, *args):
+    def Recording(self, p_values, q, *args, **kw):
         rows, cols = self.p_pattern
         diagonal = np.zeros(self.n)
         on = rows == cols
         diagonal[rows[on]] = p_values[on]
         diagonals.append(diagonal)
-        return solve(self, p_values, q, *args)
+        return solve(self, p_values, q, *args, **kw)
 
     monkeypatch.setattr(PiqpWorkspace, "Solve", Recording)
     result = RunSimulation(scenario, duration=0.4)

@@ -57,7 +57,8 @@ class HierarchicalSolver:
 
     ``stage_solvers`` holds one stage solver per entry of ``stages``, in
     priority order. It is a declared seam: any object with the stage
-    solvers' ``Solve(point, *, lower, upper, lex_bounds, linearizations)``
+    solvers' ``Solve(point, *, lower, upper, lex_bounds, linearizations,
+    warm_token)``
     returning a :class:`StageResult` may replace an entry (tests use it to
     force a stage to fail).
     """
@@ -75,6 +76,7 @@ class HierarchicalSolver:
         rti_prediction_tolerance: float = 0.0,
         rti_constraint_tolerance: float = 0.0,
         rti_early_pass_check: bool = False,
+        rti_warm_passes: bool = False,
         qp_solver: str = "piqp",
     ):
         self.program = program
@@ -85,6 +87,7 @@ class HierarchicalSolver:
         self.rti_prediction_tolerance = float(rti_prediction_tolerance)
         self.rti_constraint_tolerance = float(rti_constraint_tolerance)
         self.rti_early_pass_check = bool(rti_early_pass_check)
+        self.rti_warm_passes = bool(rti_warm_passes)
         self.stages = MakeStages(program.tasks, method)
         options = solver_options if solver_options is not None else SolverOptions()
         if solver == "rti":
@@ -132,6 +135,9 @@ class HierarchicalSolver:
         # The LinearizationPoint of the current z's robot plan, if the pass
         # rule has made one (its kinematics are reused, not recomputed).
         checked = None
+        # One token per control step: a pass after the first starts each
+        # HPIPM stage QP from the previous pass's solution of it.
+        token = object() if self.rti_warm_passes else None
         for it in range(passes):
             if it > 0 and program.predictor is not None:
                 # The next linearization point: this pass's robot plan with
@@ -149,7 +155,7 @@ class HierarchicalSolver:
             # pass rule; ``cut_point`` is its point if the rule made one).
             early = targets if self.rti_early_pass_check and it + 1 < passes else None
             z_pass, ok, why, pass_results, cut, cut_point = self._SolveHierarchy(
-                point, lower, upper, early_targets=early
+                point, lower, upper, early_targets=early, warm_token=token
             )
             if iterations >= 0 and all(r.iterations >= 0 for r in pass_results):
                 iterations += sum(r.iterations for r in pass_results)
@@ -205,7 +211,7 @@ class HierarchicalSolver:
         violation = self.program.SafetyViolation(point)
         return violation <= self.rti_constraint_tolerance, point
 
-    def _SolveHierarchy(self, point, lower, upper, early_targets=None):
+    def _SolveHierarchy(self, point, lower, upper, early_targets=None, warm_token=None):
         """One pass of every stage at one linearization point. With
         ``early_targets``, the pass rule (:meth:`_Converged`) is applied to
         the first stage's plan, and a plan that fails it ends the pass there.
@@ -223,6 +229,7 @@ class HierarchicalSolver:
                 upper=upper,
                 lex_bounds=lex_bounds,
                 linearizations=linearizations,
+                warm_token=warm_token,
             )
             results.append(result)
             if not result.success:

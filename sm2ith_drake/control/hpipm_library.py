@@ -250,10 +250,18 @@ class OcpQp:
             table.fields, table.stages, table.addresses, np.uint64(self._qp_address)
         )
 
-    def Solve(self, robust: bool = False) -> tuple[str, int]:
-        """Returns (status, iterations); ``robust``: in the balanced mode."""
+    def Solve(self, robust: bool = False, warm: bool = False) -> tuple[str, int]:
+        """Returns (status, iterations); ``robust``: in the balanced mode;
+        ``warm``: from the primal solution of the last solve (HPIPM's
+        warm_start 1), not from HPIPM's cold start."""
         arg, _, ws, _ = self._ipm[int(robust)]
-        self.lib.d_ocp_qp_ipm_solve(self._qp, self._sol, arg, ws)
+        if warm:
+            self._SetArgument(arg, "warm_start", 1)
+        try:
+            self.lib.d_ocp_qp_ipm_solve(self._qp, self._sol, arg, ws)
+        finally:
+            if warm:
+                self._SetArgument(arg, "warm_start", 0)
         status, iterations = ctypes.c_int(), ctypes.c_int()
         self.lib.d_ocp_qp_ipm_get_status(ws, ctypes.byref(status))
         self.lib.d_ocp_qp_ipm_get_iter(ws, ctypes.byref(iterations))

@@ -36,6 +36,7 @@ class HpipmStageQp(OcpStructure):
     def __init__(self, ws, structure: OcpStructure):
         self.__dict__.update(structure.__dict__)
         self.ws = ws
+        self.last_token = None  # Solve's warm_token
         states, K = self.states, self.N + 1
         x_lower_finite, x_upper_finite, lower_finite, upper_finite = self.finite
         self.qp = OcpQp(
@@ -252,9 +253,25 @@ class HpipmStageQp(OcpStructure):
             np.concatenate(positions) if positions else np.zeros(0, int)
         )
 
-    def Solve(self, p_values, q, a_values, x_lower, x_upper, lower, upper, retry=True):
+    def Solve(
+        self,
+        p_values,
+        q,
+        a_values,
+        x_lower,
+        x_upper,
+        lower,
+        upper,
+        retry=True,
+        warm_token=None,
+    ):
         """``retry``: a QP the fast mode does not solve is re-solved in
-        the balanced mode."""
+        the balanced mode. ``warm_token``: a solve given the same token as
+        this pattern's last solve starts from that solve's primal solution
+        (the second SQP pass of a control step from its first); any other
+        starts cold, so a solve never depends on an earlier control step."""
+        warm = warm_token is not None and warm_token is self.last_token
+        self.last_token = warm_token
         ws, qp = self.ws, self.qp
         if np.any(x_lower[self.slacks] != 0):
             raise ValueError("a slack variable must have bounds [0, inf)")
@@ -328,7 +345,7 @@ class HpipmStageQp(OcpStructure):
         gather(self.staging, self.gather_to, self.flat, self.gather_from)
         qp.SetFrom(self.set_calls)
         with PROFILER.Phase("hpipm_ipm"):
-            status, iterations = qp.Solve()
+            status, iterations = qp.Solve(warm=warm)
             if status != "solved" and retry:
                 # Rare (a cold start): the balanced mode, on the same data.
                 status, more = qp.Solve(robust=True)

@@ -118,8 +118,11 @@ class HpipmWorkspace:
         return self._p_rows, self._p_cols
 
     @PROFILER.Timed("hpipm")
-    def Solve(self, p_values, q, a_values, x_lower, x_upper, lower, upper):
-        """As PiqpWorkspace.Solve. Returns (x, status, iterations)."""
+    def Solve(
+        self, p_values, q, a_values, x_lower, x_upper, lower, upper, warm_token=None
+    ):
+        """As PiqpWorkspace.Solve. Returns (x, status, iterations).
+        ``warm_token``: see HpipmStageQp.Solve (PIQP starts cold)."""
         pinned = x_lower == x_upper
         finite = tuple(np.isfinite(v) for v in (x_lower, x_upper, lower, upper))
         key = (pinned.tobytes(),) + tuple(f.tobytes() for f in finite)
@@ -137,7 +140,9 @@ class HpipmWorkspace:
                 return piqp.Solve(p_values[order], *args)
             auto = self._piqp_settings is not None
             try:
-                z, status, iterations = structure.Solve(p_values, *args, retry=not auto)
+                z, status, iterations = structure.Solve(
+                    p_values, *args, retry=not auto, warm_token=warm_token
+                )
             except (ValueError, np.linalg.LinAlgError) as e:
                 if not auto:
                     raise

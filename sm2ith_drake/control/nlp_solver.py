@@ -108,10 +108,17 @@ class NlpStageSolver:
         )[0, 0]
 
     def Solve(
-        self, point, *, lower, upper, lex_bounds: dict, linearizations=None
+        self,
+        point,
+        *,
+        lower,
+        upper,
+        lex_bounds: dict,
+        linearizations=None,
+        warm_token=None,
     ) -> StageResult:
         """Solves from ``point``. ``lex_bounds`` maps task names to |e*| + tol;
-        ``linearizations`` is unused (the RTI's cache)."""
+        ``linearizations`` and ``warm_token`` are unused (the RTI's)."""
         self._targets.clear()
         self._targets.update(point.targets)
         self._cache["key"] = None

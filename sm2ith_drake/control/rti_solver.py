@@ -167,10 +167,18 @@ class RtiStageSolver:
 
     @PROFILER.Timed("qp_assembly")
     def Solve(
-        self, point, *, lower, upper, lex_bounds: dict, linearizations: dict
+        self,
+        point,
+        *,
+        lower,
+        upper,
+        lex_bounds: dict,
+        linearizations: dict,
+        warm_token=None,
     ) -> StageResult:
         """One QP at ``point``. ``lex_bounds`` maps task names to |e*| + tol;
-        ``linearizations`` caches (values, c) per group for this point."""
+        ``linearizations`` caches (values, c) per group for this point;
+        ``warm_token``: see HpipmStageQp.Solve."""
         program, problem, nv = self.program, self._problem, self._nv
         self._UseStructure()
 
@@ -226,6 +234,7 @@ class RtiStageSolver:
             upper,
             np.concatenate(lo),
             np.concatenate(hi),
+            warm_token=warm_token,
         )
         success = status in ("solved",)
         errors = {}
