@@ -121,12 +121,9 @@ def test_hpipm_solves_the_stage_qps_as_piqp_does(monkeypatch):
     assert np.median(gaps) < 1e-3 and max(gaps) < 5e-2
 
 
-@needs_hpipm
-def test_hpipm_results_do_not_depend_on_earlier_solves(monkeypatch):
-    """One workspace per pattern is reused: solving A, then B, then A again
-    gives A's solution to the last bit (so a cloned Context reproduces a
-    run)."""
-    scenario = _Crossing("crossing_ridgeback_ur10_2h")
+def _RecordSolves(monkeypatch):
+    """Records every HpipmWorkspace solve's workspace and arguments;
+    returns (calls, the unrecorded Solve)."""
     calls = []
     solve = HpipmWorkspace.Solve
 
@@ -135,7 +132,16 @@ def test_hpipm_results_do_not_depend_on_earlier_solves(monkeypatch):
         return solve(self, *args, **kw)
 
     monkeypatch.setattr(HpipmWorkspace, "Solve", Recording)
-    RunSimulation(scenario, duration=0.6)
+    return calls, solve
+
+
+@needs_hpipm
+def test_hpipm_results_do_not_depend_on_earlier_solves(monkeypatch):
+    """One workspace per pattern is reused: solving A, then B, then A again
+    gives A's solution to the last bit (so a cloned Context reproduces a
+    run)."""
+    calls, solve = _RecordSolves(monkeypatch)
+    RunSimulation(_Crossing("crossing_ridgeback_ur10_2h"), duration=0.6)
     ws, first = calls[0]
     again = [args for w, args in calls[1:] if w is ws]
     assert again
@@ -391,14 +397,7 @@ def test_warm_passes_start_from_the_same_steps_solution_only(monkeypatch):
     same solution to the QP's tolerance); any other token starts cold, bit
     for bit as if nothing had been solved before (a solve never depends on
     an earlier control step)."""
-    calls = []
-    solve = HpipmWorkspace.Solve
-
-    def Recording(self, *args, **kw):
-        calls.append((self, [np.array(a, copy=True) for a in args]))
-        return solve(self, *args, **kw)
-
-    monkeypatch.setattr(HpipmWorkspace, "Solve", Recording)
+    calls, solve = _RecordSolves(monkeypatch)
     RunSimulation(_Crossing("crossing_ridgeback_ur10_2h"), duration=0.6)
     ws, args = calls[-1]
     cold, _, it_cold = solve(ws, *args, warm_token=None)
