@@ -332,34 +332,16 @@ class MobileManipulator:
         return self.plant_positions_from_q @ q
 
     def G(self, q: np.ndarray) -> np.ndarray:
-        """q̇ = G(q) ν, an (n, m) matrix."""
-        n, m = self.num_positions, self.num_velocities
-        c, s = np.cos(q[2]), np.sin(q[2])
-        G = np.zeros((n, m))
-        if self.base_kind == "holonomic":
-            G[:3, :3] = [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]
-            G[3:, 3:] = np.eye(n - 3)
-        else:
-            G[:3, :2] = [[c, 0.0], [s, 0.0], [0.0, 1.0]]
-            G[3:, 2:] = np.eye(n - 3)
-        return G
+        """q̇ = G(q) ν, an (n, m) matrix (one row of :meth:`GStack`)."""
+        return self.GStack(np.asarray(q)[None])[0]
 
     def dGnu_dq(self, q: np.ndarray, nu: np.ndarray) -> np.ndarray:
-        """∂(G(q) ν)/∂q, an (n, n) matrix (only the θ column is nonzero)."""
-        n = self.num_positions
-        c, s = np.cos(q[2]), np.sin(q[2])
-        out = np.zeros((n, n))
-        if self.base_kind == "holonomic":
-            vx, vy = nu[0], nu[1]
-            out[0, 2] = -s * vx - c * vy
-            out[1, 2] = c * vx - s * vy
-        else:
-            out[0, 2] = -s * nu[0]
-            out[1, 2] = c * nu[0]
-        return out
+        """∂(G(q) ν)/∂q, an (n, n) matrix (only the θ column is nonzero; one
+        row of :meth:`dGnu_dqStack`)."""
+        return self.dGnu_dqStack(np.asarray(q)[None], np.asarray(nu)[None])[0]
 
     def GStack(self, qs: np.ndarray) -> np.ndarray:
-        """G(q) at the K rows of ``qs``, (K, n, m) (as :meth:`G`)."""
+        """q̇ = G(q) ν at the K rows of ``qs``: (K, n, m)."""
         qs = np.atleast_2d(qs)
         K, n, m = qs.shape[0], self.num_positions, self.num_velocities
         c, s = np.cos(qs[:, 2]), np.sin(qs[:, 2])
@@ -375,8 +357,8 @@ class MobileManipulator:
         return G
 
     def dGnu_dqStack(self, qs: np.ndarray, nus: np.ndarray) -> np.ndarray:
-        """∂(G(q) ν)/∂q at the K rows of ``qs`` and ``nus``, (K, n, n) (as
-        :meth:`dGnu_dq`)."""
+        """∂(G(q) ν)/∂q at the K rows of ``qs`` and ``nus``: (K, n, n), only
+        the θ column nonzero."""
         qs, nus = np.atleast_2d(qs), np.atleast_2d(nus)
         n = self.num_positions
         c, s = np.cos(qs[:, 2]), np.sin(qs[:, 2])
