@@ -27,7 +27,9 @@ class PackedSteps:
     point's position in that body's frame) and which plant positions move
     each point."""
 
-    def __init__(self, steps, num_bodies, point_slots, point_local, ancestors):
+    def __init__(
+        self, steps, num_bodies, point_slots, point_local, ancestors, revolute_column
+    ):
         self.num_bodies = int(num_bodies)
         self.body = np.array([st.body for st in steps], dtype=np.int64)
         self.parent = np.array([st.parent for st in steps], dtype=np.int64)
@@ -41,8 +43,9 @@ class PackedSteps:
         self.point_slots = np.ascontiguousarray(point_slots, dtype=np.int64)
         self.point_local = np.ascontiguousarray(point_local, dtype=float)
         self.point_mask = np.ascontiguousarray(ancestors[self.point_slots])
+        self.revolute_column = np.ascontiguousarray(revolute_column)
 
-    def Evaluate(self, qp: np.ndarray, revolute_column: np.ndarray):
+    def Evaluate(self, qp: np.ndarray):
         """Points (K, P, 3), their Jacobians w.r.t. the plant positions
         (K, P, 3, n_plant) and the bodies' origins (K, bodies, 3) at the
         plant positions ``qp`` (K, n_plant)."""
@@ -65,7 +68,7 @@ class PackedSteps:
             self.point_slots,
             self.point_local,
             self.point_mask,
-            revolute_column,
+            self.revolute_column,
             points,
             jac,
             origins,

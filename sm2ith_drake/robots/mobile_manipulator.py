@@ -116,6 +116,7 @@ class MobileManipulator:
             np.concatenate([[self._ee_slot], self._capsule_slots.reshape(-1)]),
             np.concatenate([self._p_BE[None], self._capsule_local.reshape(-1, 3)]),
             self._ancestors,
+            self._revolute_column,
         )
         moved = self._ancestors[self._capsule_slots].any(axis=1).astype(float)
         self.capsule_joint_masks = moved @ np.abs(self.plant_positions_from_q) > 0
@@ -380,7 +381,7 @@ class MobileManipulator:
             raise ValueError(f"q needs {self.num_positions} entries, got {n}")
         qp = qs @ self.plant_positions_from_q.T  # plant positions (K, n_plant)
         # Points: the end effector, then both ends of every capsule.
-        points, jac_plant, origins = self._packed.Evaluate(qp, self._revolute_column)
+        points, jac_plant, origins = self._packed.Evaluate(qp)
         # ∂p/∂q = ∂p/∂(plant positions) · plant_positions_from_q.
         jac = jac_plant @ self.plant_positions_from_q
         C, n = len(self.capsules), self.num_positions
