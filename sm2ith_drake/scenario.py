@@ -132,15 +132,16 @@ class ControllerConfig:
     # person) and its mean EE error grew 6 %: in a two-pass step the lower
     # stages get one linearization instead of two. Off (README, Benchmark).
     rti_early_pass_check: bool = False
-    # HPIPM only: a pass after the first starts each stage QP from the
-    # previous pass's solution of it (HPIPM's primal warm start) instead of
-    # cold. Within a control step only, so a cloned Context reproduces the
-    # run. Measured (bench, 3 people, Ridgeback–UR10, three runs each):
-    # pass-two QPs 15.5 iterations instead of ~21.7, p99 69–77 ms against
-    # 83–117, max 84–86 against 144–150 (no stage QP left unsolved by
-    # HPIPM's fast mode); plans within the QPs' tolerance (≤ 5e-3), KKT
-    # faithfulness 98.90 % against 98.88 % (README, Benchmark).
-    rti_warm_passes: bool = True
+    # Where HPIPM's interior point starts a stage QP (HPIPM only; PIQP
+    # starts cold). "point": from the QP's linearization point (HPIPM's
+    # primal warm start; in a step's first pass the shifted previous plan,
+    # which the Context holds, so a cloned Context reproduces the run).
+    # "passes": a pass after the first from the previous pass's solution of
+    # that QP, the first pass cold (the default from 86ca64c to this one).
+    # "cold": HPIPM's cold start. Measured (bench, 3 people, 200 steps,
+    # README, Benchmark): mean QP iterations per step 50.4 → 37.4
+    # (Ridgeback–UR10) and 44.8 → 33.5 (Stretch 3) from "passes" to "point".
+    rti_warm_start: str = "point"
     # Damping ½ρ‖z − z̄‖² toward the linearization point (the shifted previous
     # plan) in every RTI QP, as in Levenberg–Marquardt: it keeps single QP
     # steps where the linearization holds (near arm singularities, at the
@@ -178,6 +179,8 @@ HUMAN_BEHAVIORS = (
     "instructed",
 )
 PREDICTORS = ("orca_kkt", "cvmm", "react")
+# Where HPIPM starts a stage QP (ControllerConfig.rti_warm_start).
+WARM_STARTS = ("point", "passes", "cold")
 
 
 @dataclass

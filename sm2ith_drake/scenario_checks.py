@@ -23,6 +23,7 @@ from sm2ith_drake.scenario import (
     HUMAN_BEHAVIORS,
     PREDICTORS,
     TASK_KINDS,
+    WARM_STARTS,
     HumanConfig,
     RobotConfig,
     Scenario,
@@ -156,13 +157,11 @@ def _ValidateController(scenario: Scenario) -> None:
     _OneOf(c.method, ("htmpc", "weighted_sum"), "controller.method")
     _OneOf(c.solver, ("rti", "snopt", "ipopt"), "controller.solver")
     _OneOf(c.qp_solver, ("piqp", "hpipm", "auto"), "controller.qp_solver")
-    if c.horizon < 1:
-        raise ScenarioError(f"controller.horizon must be ≥ 1, got {c.horizon}")
+    _OneOf(c.rti_warm_start, WARM_STARTS, "controller.rti_warm_start")
+    for name in ("horizon", "rti_iterations"):
+        if (value := getattr(c, name)) < 1:
+            raise ScenarioError(f"controller.{name} must be ≥ 1, got {value}")
     _Positive(c.time_step, "controller.time_step")
-    if c.rti_iterations < 1:
-        raise ScenarioError(
-            f"controller.rti_iterations must be ≥ 1, got {c.rti_iterations}"
-        )
     # 0 means "the MPC step" (control_period) or "no budget" (time_budget).
     for name in (
         "rti_proximal_weight",

@@ -392,7 +392,7 @@ def test_batched_solve_matches_numpy_and_rejects_singular_blocks():
 
 @needs_hpipm
 def test_warm_passes_start_from_the_same_steps_solution_only(monkeypatch):
-    """controller.rti_warm_passes: a stage QP given the token of its
+    """controller.rti_warm_start "passes": a stage QP given the token of its
     pattern's last solve starts from that solution (fewer iterations, the
     same solution to the QP's tolerance); any other token starts cold, bit
     for bit as if nothing had been solved before (a solve never depends on
@@ -414,3 +414,31 @@ def test_warm_passes_start_from_the_same_steps_solution_only(monkeypatch):
     later, _, it_later = solve(ws, *args, warm_token=object())
     np.testing.assert_array_equal(later, cold)
     assert it_later == it_cold
+
+
+@needs_hpipm
+def test_a_start_point_is_all_a_solve_depends_on(monkeypatch):
+    """controller.rti_warm_start "point": a stage QP started from a point
+    gives the same solution to the last bit whatever was solved before it
+    (every primal entry HPIPM starts from, the slacks included, is
+    written), the cold solution to the QP's tolerance, and from the
+    solution itself fewer iterations than cold."""
+    calls, solve = _RecordSolves(monkeypatch)
+    RunSimulation(_Crossing("crossing_ridgeback_ur10_2h"), duration=0.6)
+    ws, first = calls[0]
+    again = [args for w, args in calls[1:] if w is ws]
+    assert again
+    cold, _, it_cold = solve(ws, *first)
+    start = np.zeros_like(cold)
+    z1, status, it1 = solve(ws, *first, guess=start)
+    other, _, _ = solve(ws, *again[-1], guess=np.ones_like(cold))
+    assert not np.array_equal(other, z1)
+    z2, _, it2 = solve(ws, *first, guess=start)
+    assert status == "solved" and it2 == it1
+    np.testing.assert_array_equal(z1, z2)
+    # Degenerate QPs: another start ends elsewhere on the optimal face,
+    # within the QP's tolerance (as with the passes' warm start).
+    np.testing.assert_allclose(z1, cold, atol=5e-3)
+    from_solution, status, it_solution = solve(ws, *first, guess=cold)
+    assert status == "solved" and it_solution < it_cold
+    np.testing.assert_allclose(from_solution, cold, atol=5e-3)

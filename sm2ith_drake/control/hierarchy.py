@@ -28,6 +28,7 @@ from sm2ith_drake.control.stage_problem import (
     MakeStages,
     StageResult,
 )
+from sm2ith_drake.scenario import WARM_STARTS
 
 
 @dataclass
@@ -76,7 +77,7 @@ class HierarchicalSolver:
         rti_prediction_tolerance: float = 0.0,
         rti_constraint_tolerance: float = 0.0,
         rti_early_pass_check: bool = False,
-        rti_warm_passes: bool = False,
+        rti_warm_start: str = "cold",
         qp_solver: str = "piqp",
     ):
         self.program = program
@@ -87,7 +88,9 @@ class HierarchicalSolver:
         self.rti_prediction_tolerance = float(rti_prediction_tolerance)
         self.rti_constraint_tolerance = float(rti_constraint_tolerance)
         self.rti_early_pass_check = bool(rti_early_pass_check)
-        self.rti_warm_passes = bool(rti_warm_passes)
+        if rti_warm_start not in WARM_STARTS:
+            raise ValueError(f"rti_warm_start must be one of {WARM_STARTS}")
+        self.rti_warm_start = rti_warm_start
         self.stages = MakeStages(program.tasks, method)
         options = solver_options if solver_options is not None else SolverOptions()
         if solver == "rti":
@@ -135,9 +138,10 @@ class HierarchicalSolver:
         # The LinearizationPoint of the current z's robot plan, if the pass
         # rule has made one (its kinematics are reused, not recomputed).
         checked = None
-        # One token per control step: a pass after the first starts each
-        # HPIPM stage QP from the previous pass's solution of it.
-        token = object() if self.rti_warm_passes else None
+        # rti_warm_start "passes": one token per control step, with which a
+        # pass after the first starts each HPIPM stage QP from the previous
+        # pass's solution of it.
+        token = object() if self.rti_warm_start == "passes" else None
         for it in range(passes):
             if it > 0 and program.predictor is not None:
                 # The next linearization point: this pass's robot plan with
@@ -230,6 +234,7 @@ class HierarchicalSolver:
                 lex_bounds=lex_bounds,
                 linearizations=linearizations,
                 warm_token=warm_token,
+                guess=point.z if self.rti_warm_start == "point" else None,
             )
             results.append(result)
             if not result.success:

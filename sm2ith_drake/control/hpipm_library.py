@@ -133,6 +133,7 @@ def _CallLoops():
     )
     set_ = proto(ctypes.cast(lib.d_ocp_qp_set, ctypes.c_void_p).value)
     get = proto(ctypes.cast(lib.d_ocp_qp_sol_get, ctypes.c_void_p).value)
+    put = proto(ctypes.cast(lib.d_ocp_qp_sol_set, ctypes.c_void_p).value)
 
     # Explicit signatures: compiled here, not at the first call.
     @numba.njit("void(uint64[::1], int32[::1], uint64[::1], uint64)")
@@ -145,7 +146,12 @@ def _CallLoops():
         for i in range(fields.size):
             get(fields[i], stages[i], sol, addresses[i])
 
-    return SetAll, GetAll
+    @numba.njit("void(uint64[::1], int32[::1], uint64, uint64[::1])")
+    def PutAll(fields, stages, sol, addresses):  # pragma: no cover
+        for i in range(fields.size):
+            put(fields[i], stages[i], addresses[i], sol)
+
+    return SetAll, GetAll, PutAll
 
 
 def Compile() -> None:
@@ -266,6 +272,12 @@ class OcpQp:
         self.lib.d_ocp_qp_ipm_get_status(ws, ctypes.byref(status))
         self.lib.d_ocp_qp_ipm_get_iter(ws, ctypes.byref(iterations))
         return STATUS.get(status.value, f"status {status.value}"), iterations.value
+
+    def SetSolutionFrom(self, table: CallTable) -> None:
+        """A primal point into the solution (d_ocp_qp_sol_set's field
+        names: x, u, sl, su), where Solve(warm=True) starts from."""
+        sol = np.uint64(ctypes.addressof(self._sol))
+        _CallLoops()[2](table.fields, table.stages, sol, table.addresses)
 
     def GetInto(self, table: CallTable) -> None:
         """Solution vectors into caller-kept arrays (d_ocp_qp_sol_get's

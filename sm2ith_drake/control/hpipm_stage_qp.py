@@ -252,6 +252,35 @@ class HpipmStageQp(OcpStructure):
         self.out_positions = (
             np.concatenate(positions) if positions else np.zeros(0, int)
         )
+        # A primal starting point (Solve's ``guess``): x with the copies,
+        # u, the slacks (sl, scaled per solve) and su = 0 (the buffer's
+        # tail, never written).
+        calls, targets, offset, slack_positions = [], [], 0, []
+        for k in range(K):
+            for field, vars_ in (
+                ("x", self.X[k]),
+                ("u", self.U[k]),
+                ("sl", self.soft_vars[k]),
+            ):
+                if len(vars_):
+                    calls.append((field, k, field, vars_, offset))
+                    if field == "sl":
+                        slack_positions.append(offset + np.arange(len(vars_)))
+                    offset += len(vars_)
+        zeros = offset
+        self.guess = np.zeros(zeros + max([len(v) for v in self.soft_vars] + [1]))
+        base = self.guess.ctypes.data
+        table = []
+        for field, k, _, vars_, start in calls:
+            table.append((field, k, base + 8 * start))
+            targets.append(vars_)
+            if field == "sl":
+                table.append(("su", k, base + 8 * zeros))
+        self.guess_calls = CallTable.Of(table)
+        self.guess_targets = np.concatenate(targets) if targets else np.zeros(0, int)
+        self.guess_slacks = (
+            np.concatenate(slack_positions) if slack_positions else np.zeros(0, int)
+        )
 
     def Solve(
         self,
@@ -264,12 +293,16 @@ class HpipmStageQp(OcpStructure):
         upper,
         retry=True,
         warm_token=None,
+        guess=None,
     ):
         """``retry``: a QP the fast mode does not solve is re-solved in
         the balanced mode. ``warm_token``: a solve given the same token as
         this pattern's last solve starts from that solve's primal solution
         (the second SQP pass of a control step from its first); any other
-        starts cold, so a solve never depends on an earlier control step."""
+        starts cold, so a solve never depends on an earlier control step.
+        ``guess`` (a point over z; before the token): the solve starts from
+        it (HPIPM's primal warm start; every primal entry HPIPM starts from
+        is written, so the solve depends on nothing earlier either)."""
         warm = warm_token is not None and warm_token is self.last_token
         self.last_token = warm_token
         ws, qp = self.ws, self.qp
@@ -344,6 +377,12 @@ class HpipmStageQp(OcpStructure):
         np.divide(lin, coef, out=F["zl"])
         gather(self.staging, self.gather_to, self.flat, self.gather_from)
         qp.SetFrom(self.set_calls)
+        if guess is not None:
+            n_guess = self.guess_targets.size
+            self.guess[:n_guess] = guess[self.guess_targets]
+            self.guess[self.guess_slacks] *= coef[self.guess_targets[self.guess_slacks]]
+            qp.SetSolutionFrom(self.guess_calls)
+            warm = True
         with PROFILER.Phase("hpipm_ipm"):
             status, iterations = qp.Solve(warm=warm)
             if status != "solved" and retry:

@@ -119,10 +119,20 @@ class HpipmWorkspace:
 
     @PROFILER.Timed("hpipm")
     def Solve(
-        self, p_values, q, a_values, x_lower, x_upper, lower, upper, warm_token=None
+        self,
+        p_values,
+        q,
+        a_values,
+        x_lower,
+        x_upper,
+        lower,
+        upper,
+        warm_token=None,
+        guess=None,
     ):
         """As PiqpWorkspace.Solve. Returns (x, status, iterations).
-        ``warm_token``: see HpipmStageQp.Solve (PIQP starts cold)."""
+        ``warm_token``, ``guess``: see HpipmStageQp.Solve (PIQP starts
+        cold)."""
         pinned = x_lower == x_upper
         finite = tuple(np.isfinite(v) for v in (x_lower, x_upper, lower, upper))
         key = (pinned.tobytes(),) + tuple(f.tobytes() for f in finite)
@@ -141,7 +151,11 @@ class HpipmWorkspace:
             auto = self._piqp_settings is not None
             try:
                 z, status, iterations = structure.Solve(
-                    p_values, *args, retry=not auto, warm_token=warm_token
+                    p_values,
+                    *args,
+                    retry=not auto,
+                    warm_token=warm_token,
+                    guess=guess,
                 )
             except (ValueError, np.linalg.LinAlgError) as e:
                 if not auto:

@@ -199,7 +199,7 @@ class MpcController:
             rti_prediction_tolerance=config.rti_prediction_tolerance,
             rti_constraint_tolerance=config.rti_constraint_tolerance,
             rti_early_pass_check=config.rti_early_pass_check,
-            rti_warm_passes=config.rti_warm_passes,
+            rti_warm_start=config.rti_warm_start,
             qp_solver=config.qp_solver,
         )
         self.safety = safety or SafetyConfig()

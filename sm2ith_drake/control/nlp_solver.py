@@ -116,9 +116,11 @@ class NlpStageSolver:
         lex_bounds: dict,
         linearizations=None,
         warm_token=None,
+        guess=None,
     ) -> StageResult:
         """Solves from ``point``. ``lex_bounds`` maps task names to |e*| + tol;
-        ``linearizations`` and ``warm_token`` are unused (the RTI's)."""
+        ``linearizations``, ``warm_token`` and ``guess`` are unused (the
+        RTI's)."""
         self._targets.clear()
         self._targets.update(point.targets)
         self._cache["key"] = None

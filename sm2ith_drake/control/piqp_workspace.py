@@ -160,11 +160,13 @@ class PiqpWorkspace:
         lower: np.ndarray,
         upper: np.ndarray,
         warm_token=None,
+        guess=None,
     ) -> tuple[np.ndarray | None, str, int]:
         """Solves with P's values in :attr:`p_pattern` order, the constraint
         values in ``a_pattern`` order and the constraint rows' bounds
         ``lower`` ≤ row ≤ ``upper`` (equal on the equality rows).
-        ``warm_token`` is HpipmWorkspace's; PIQP always starts cold.
+        ``warm_token`` and ``guess`` are HpipmWorkspace's; PIQP always
+        starts cold.
 
         Returns (x, status, iterations); x is None if nothing usable."""
         P = sp.csc_matrix((p_values, self._p_indices, self._p_indptr), (self.n, self.n))

@@ -175,10 +175,12 @@ class RtiStageSolver:
         lex_bounds: dict,
         linearizations: dict,
         warm_token=None,
+        guess=None,
     ) -> StageResult:
         """One QP at ``point``. ``lex_bounds`` maps task names to |e*| + tol;
         ``linearizations`` caches (values, c) per group for this point;
-        ``warm_token``: see HpipmStageQp.Solve."""
+        ``warm_token``, ``guess`` (a primal starting point over z): see
+        HpipmStageQp.Solve."""
         program, problem, nv = self.program, self._problem, self._nv
         self._UseStructure()
 
@@ -235,6 +237,7 @@ class RtiStageSolver:
             np.concatenate(lo),
             np.concatenate(hi),
             warm_token=warm_token,
+            guess=guess,
         )
         success = status in ("solved",)
         errors = {}
