@@ -135,16 +135,24 @@ def _RecordSolves(monkeypatch):
     return calls, solve
 
 
-@needs_hpipm
-def test_hpipm_results_do_not_depend_on_earlier_solves(monkeypatch):
-    """One workspace per pattern is reused: solving A, then B, then A again
-    gives A's solution to the last bit (so a cloned Context reproduces a
-    run)."""
+def _RecordedCrossing(monkeypatch):
+    """The solves of a short crossing: the unrecorded Solve, every recorded
+    call, the first call's workspace and arguments, and the arguments of
+    that workspace's later calls."""
     calls, solve = _RecordSolves(monkeypatch)
     RunSimulation(_Crossing("crossing_ridgeback_ur10_2h"), duration=0.6)
     ws, first = calls[0]
     again = [args for w, args in calls[1:] if w is ws]
     assert again
+    return solve, calls, ws, first, again
+
+
+@needs_hpipm
+def test_hpipm_results_do_not_depend_on_earlier_solves(monkeypatch):
+    """One workspace per pattern is reused: solving A, then B, then A again
+    gives A's solution to the last bit (so a cloned Context reproduces a
+    run)."""
+    solve, calls, ws, first, again = _RecordedCrossing(monkeypatch)
     z1, _, _ = solve(ws, *first)
     solve(ws, *again[-1])
     z2, _, _ = solve(ws, *first)
@@ -423,11 +431,7 @@ def test_a_start_point_is_all_a_solve_depends_on(monkeypatch):
     (every primal entry HPIPM starts from, the slacks included, is
     written), the cold solution to the QP's tolerance, and from the
     solution itself fewer iterations than cold."""
-    calls, solve = _RecordSolves(monkeypatch)
-    RunSimulation(_Crossing("crossing_ridgeback_ur10_2h"), duration=0.6)
-    ws, first = calls[0]
-    again = [args for w, args in calls[1:] if w is ws]
-    assert again
+    solve, calls, ws, first, again = _RecordedCrossing(monkeypatch)
     cold, _, it_cold = solve(ws, *first)
     start = np.zeros_like(cold)
     z1, status, it1 = solve(ws, *first, guess=start)

@@ -118,20 +118,9 @@ class HpipmWorkspace:
         return self._p_rows, self._p_cols
 
     @PROFILER.Timed("hpipm")
-    def Solve(
-        self,
-        p_values,
-        q,
-        a_values,
-        x_lower,
-        x_upper,
-        lower,
-        upper,
-        warm_token=None,
-        guess=None,
-    ):
+    def Solve(self, p_values, q, a_values, x_lower, x_upper, lower, upper, **start):
         """As PiqpWorkspace.Solve. Returns (x, status, iterations).
-        ``warm_token``, ``guess``: see HpipmStageQp.Solve (PIQP starts
+        ``start``: warm_token, guess (see HpipmStageQp.Solve; PIQP starts
         cold)."""
         pinned = x_lower == x_upper
         finite = tuple(np.isfinite(v) for v in (x_lower, x_upper, lower, upper))
@@ -151,11 +140,7 @@ class HpipmWorkspace:
             auto = self._piqp_settings is not None
             try:
                 z, status, iterations = structure.Solve(
-                    p_values,
-                    *args,
-                    retry=not auto,
-                    warm_token=warm_token,
-                    guess=guess,
+                    p_values, *args, retry=not auto, **start
                 )
             except (ValueError, np.linalg.LinAlgError) as e:
                 if not auto:
