@@ -446,3 +446,17 @@ def test_a_start_point_is_all_a_solve_depends_on(monkeypatch):
     from_solution, status, it_solution = solve(ws, *first, guess=cold)
     assert status == "solved" and it_solution < it_cold
     np.testing.assert_allclose(from_solution, cold, atol=5e-3)
+
+
+@needs_hpipm
+def test_the_balanced_mode_is_made_at_its_first_use(monkeypatch):
+    """HPIPM's balanced-mode workspace (the retry of a QP the fast mode
+    leaves unsolved; auto hands such QPs to PIQP instead) is allocated
+    when first needed, and then solves the QP the fast mode was given."""
+    solve, _, ws, first, _ = _RecordedCrossing(monkeypatch)
+    solve(ws, *first)
+    qp = next(s.qp for s in ws._structures.values() if hasattr(s, "qp"))
+    assert qp._ipm[1] is None
+    status, iterations = qp.Solve(robust=True)
+    assert qp._ipm[1] is not None
+    assert status == "solved" and iterations > 0

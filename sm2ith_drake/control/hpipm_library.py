@@ -207,8 +207,9 @@ class OcpQp:
         lib.d_ocp_qp_sol_create(self._dim, self._sol, self._sol_mem)
         # IPM arguments and workspaces: the mode asked for, and a robust
         # one for a QP that mode does not solve (Solve(robust=True)).
-        robust = {**settings, "iter_max": max(100, settings.get("iter_max", 0))}
-        self._ipm = [self._Ipm(mode, settings), self._Ipm("balance", robust)]
+        # The robust one is made at its first use (auto never uses it).
+        self._robust = {**settings, "iter_max": max(100, settings.get("iter_max", 0))}
+        self._ipm = [self._Ipm(mode, settings), None]
 
     def _Ipm(self, mode: str, settings: dict):
         lib = self.lib
@@ -260,6 +261,8 @@ class OcpQp:
         """Returns (status, iterations); ``robust``: in the balanced mode;
         ``warm``: from the primal solution of the last solve (HPIPM's
         warm_start 1), not from HPIPM's cold start."""
+        if robust and self._ipm[1] is None:
+            self._ipm[1] = self._Ipm("balance", self._robust)
         arg, _, ws, _ = self._ipm[int(robust)]
         if warm:
             self._SetArgument(arg, "warm_start", 1)
