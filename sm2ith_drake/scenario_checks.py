@@ -165,6 +165,7 @@ def _ValidateController(scenario: Scenario) -> None:
     # 0 means "the MPC step" (control_period) or "no budget" (time_budget).
     for name in (
         "rti_proximal_weight",
+        "rti_later_pass_damping",
         "rti_prediction_tolerance",
         "rti_constraint_tolerance",
         "lexicographic_tolerance",

@@ -407,3 +407,42 @@ def test_proximal_term_damps_the_orca_multipliers_only_if_asked(
         np.testing.assert_allclose(diagonal[lam], expected, atol=1e-12)
         # The robot's configurations: ρ on top of any task curvature.
         assert np.all(diagonal[q] >= effort[q] + rho - 1e-12)
+
+
+def test_a_later_pass_is_damped_harder_and_stays_nearer_its_point(monkeypatch):
+    """controller.rti_later_pass_damping: a step's first pass damps with
+    rti_proximal_weight, a later pass with that times the factor; and on
+    one stage QP a heavier damping never ends farther from the
+    linearization point (the proximal point's weighted distance does not
+    grow with ρ)."""
+    from sm2ith_drake.control.rti_solver import RtiStageSolver
+
+    dampings, distances = set(), []
+    solve = RtiStageSolver.Solve
+
+    def Recording(self, point, **kw):
+        dampings.add(kw["damping"])
+        if kw["damping"] == 10.0 and not distances:
+            # The same stage QP (the program as it is now), damped 1, 10, 100.
+            weights = np.broadcast_to(self.proximal_weight, point.z.shape)
+            for damping in (1.0, 10.0, 100.0):
+                args = dict(kw, damping=damping, linearizations={})
+                result = solve(
+                    self, point, **dict(args, lex_bounds=dict(kw["lex_bounds"]))
+                )
+                assert result.success, result.status
+                distances.append(np.sqrt(np.sum(weights * (result.z - point.z) ** 2)))
+        return solve(self, point, **kw)
+
+    monkeypatch.setattr(RtiStageSolver, "Solve", Recording)
+    _run(
+        "crossing_ridgeback_ur10_3h",
+        "{controller: {rti_iterations: 2, rti_later_pass_damping: 10}}",
+        filename=GetDiagramsDir() / "crossing.scenarios.yaml",
+        duration=1.0,
+    )
+    assert dampings == {1.0, 10.0}
+    assert distances[0] > 0
+    assert distances[1] <= distances[0] + 1e-6
+    assert distances[2] <= distances[1] + 1e-6
+    assert distances[2] < distances[0]

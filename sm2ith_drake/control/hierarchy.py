@@ -78,6 +78,7 @@ class HierarchicalSolver:
         rti_constraint_tolerance: float = 0.0,
         rti_early_pass_check: bool = False,
         rti_warm_start: str = "cold",
+        rti_later_pass_damping: float = 1.0,
         qp_solver: str = "piqp",
     ):
         self.program = program
@@ -91,6 +92,7 @@ class HierarchicalSolver:
         if rti_warm_start not in WARM_STARTS:
             raise ValueError(f"rti_warm_start must be one of {WARM_STARTS}")
         self.rti_warm_start = rti_warm_start
+        self.rti_later_pass_damping = float(rti_later_pass_damping)
         self.stages = MakeStages(program.tasks, method)
         options = solver_options if solver_options is not None else SolverOptions()
         if solver == "rti":
@@ -159,7 +161,12 @@ class HierarchicalSolver:
             # pass rule; ``cut_point`` is its point if the rule made one).
             early = targets if self.rti_early_pass_check and it + 1 < passes else None
             z_pass, ok, why, pass_results, cut, cut_point = self._SolveHierarchy(
-                point, lower, upper, early_targets=early, warm_token=token
+                point,
+                lower,
+                upper,
+                early_targets=early,
+                warm_token=token,
+                damping=1.0 if it == 0 else self.rti_later_pass_damping,
             )
             if iterations >= 0 and all(r.iterations >= 0 for r in pass_results):
                 iterations += sum(r.iterations for r in pass_results)
@@ -215,7 +222,9 @@ class HierarchicalSolver:
         violation = self.program.SafetyViolation(point)
         return violation <= self.rti_constraint_tolerance, point
 
-    def _SolveHierarchy(self, point, lower, upper, early_targets=None, warm_token=None):
+    def _SolveHierarchy(
+        self, point, lower, upper, early_targets=None, warm_token=None, damping=1.0
+    ):
         """One pass of every stage at one linearization point. With
         ``early_targets``, the pass rule (:meth:`_Converged`) is applied to
         the first stage's plan, and a plan that fails it ends the pass there.
@@ -235,6 +244,7 @@ class HierarchicalSolver:
                 linearizations=linearizations,
                 warm_token=warm_token,
                 guess=point.z if self.rti_warm_start == "point" else None,
+                damping=damping,
             )
             results.append(result)
             if not result.success:

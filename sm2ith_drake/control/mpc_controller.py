@@ -200,6 +200,7 @@ class MpcController:
             rti_constraint_tolerance=config.rti_constraint_tolerance,
             rti_early_pass_check=config.rti_early_pass_check,
             rti_warm_start=config.rti_warm_start,
+            rti_later_pass_damping=config.rti_later_pass_damping,
             qp_solver=config.qp_solver,
         )
         self.safety = safety or SafetyConfig()

@@ -117,10 +117,11 @@ class NlpStageSolver:
         linearizations=None,
         warm_token=None,
         guess=None,
+        damping=1.0,
     ) -> StageResult:
         """Solves from ``point``. ``lex_bounds`` maps task names to |e*| + tol;
-        ``linearizations``, ``warm_token`` and ``guess`` are unused (the
-        RTI's)."""
+        ``linearizations``, ``warm_token``, ``guess`` and ``damping`` are
+        unused (the RTI's)."""
         self._targets.clear()
         self._targets.update(point.targets)
         self._cache["key"] = None

@@ -176,11 +176,12 @@ class RtiStageSolver:
         linearizations: dict,
         warm_token=None,
         guess=None,
+        damping=1.0,
     ) -> StageResult:
         """One QP at ``point``. ``lex_bounds`` maps task names to |e*| + tol;
         ``linearizations`` caches (values, c) per group for this point;
         ``warm_token``, ``guess`` (a primal starting point over z): see
-        HpipmStageQp.Solve."""
+        HpipmStageQp.Solve; ``damping`` multiplies the proximal weight."""
         program, problem, nv = self.program, self._problem, self._nv
         self._UseStructure()
 
@@ -204,7 +205,7 @@ class RtiStageSolver:
             q_cost += gradient
         # J_eff and the proximal term ½ Σ ρ_i (z_i − z̄_i)² (ρ per variable:
         # MpcProgram.ProximalMask).
-        rho = self.proximal_weight
+        rho = self.proximal_weight * damping
         p_values = np.zeros(self._p_diag.size)
         p_values[self._p_in_cost] = P_cost[
             self._p_row_local[self._p_in_cost], self._p_col_local[self._p_in_cost]
