@@ -401,12 +401,20 @@ def test_proximal_term_damps_the_orca_multipliers_only_if_asked(
     q = controller_program.layout.q[1:].ravel()
     effort = controller_program.effort_diagonal
     assert diagonals and lam.size
+    factor = scenario.controller.rti_later_pass_damping
+    assert factor > 1
+    seen = set()
     for diagonal in diagonals:
+        # A pass the people's predictions asked for is damped by ρ·factor
+        # (rti_later_pass_damping), every other by ρ.
+        damping = factor if np.isclose(diagonal[lam[0]], rho * factor) else 1.0
+        seen.add(damping)
         # The multipliers carry no cost of their own: ρ or nothing.
-        expected = rho if damp_multipliers else 0.0
+        expected = rho * damping if damp_multipliers else 0.0
         np.testing.assert_allclose(diagonal[lam], expected, atol=1e-12)
         # The robot's configurations: ρ on top of any task curvature.
-        assert np.all(diagonal[q] >= effort[q] + rho - 1e-12)
+        assert np.all(diagonal[q] >= effort[q] + rho * damping - 1e-12)
+    assert 1.0 in seen
 
 
 def test_a_later_pass_is_damped_harder_and_stays_nearer_its_point(monkeypatch):

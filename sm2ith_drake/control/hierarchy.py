@@ -144,6 +144,12 @@ class HierarchicalSolver:
         # pass after the first starts each HPIPM stage QP from the previous
         # pass's solution of it.
         token = object() if self.rti_warm_start == "passes" else None
+        # The proximal weight's factor in this pass: rti_later_pass_damping
+        # for a pass that runs because the people's predicted actions had
+        # not converged (it linearizes at their exact responses), else 1
+        # (the first pass, and an ordinary SQP pass: after a safety
+        # violation, with rti_prediction_tolerance 0, or nobody predicted).
+        damping = 1.0
         for it in range(passes):
             if it > 0 and program.predictor is not None:
                 # The next linearization point: this pass's robot plan with
@@ -166,7 +172,7 @@ class HierarchicalSolver:
                 upper,
                 early_targets=early,
                 warm_token=token,
-                damping=1.0 if it == 0 else self.rti_later_pass_damping,
+                damping=damping,
             )
             if iterations >= 0 and all(r.iterations >= 0 for r in pass_results):
                 iterations += sum(r.iterations for r in pass_results)
@@ -178,13 +184,15 @@ class HierarchicalSolver:
                 break
             z, results, status = z_pass, pass_results, why
             passes_run = it + 1
-            if cut:
+            if cut:  # (the early check: damped either way)
                 checked = cut_point
+                damping = self.rti_later_pass_damping
                 continue
             if it + 1 < passes:
-                converged, checked = self._Converged(z, targets)
+                converged, checked, predictions = self._Converged(z, targets)
                 if converged:
                     break
+                damping = self.rti_later_pass_damping if predictions else 1.0
         q, nu, u = program.layout.Split(z)
         kin = checked.kin if checked is not None else program.robot.CalcKinematics(q)
         predictor = program.predictor
@@ -211,16 +219,17 @@ class HierarchicalSolver:
         rows, each within its tolerance. Never with tolerance 0, nor
         without people to predict: then every pass is an ordinary SQP
         iteration on the robot's tasks. Returns (converged, the
-        LinearizationPoint of z if the safety check made one)."""
+        LinearizationPoint of z if the safety check made one, whether the
+        predicted human actions were what had not converged)."""
         predictor = self.program.predictor
         if self.rti_prediction_tolerance <= 0 or predictor is None:
-            return False, None
+            return False, None, False
         errors = predictor.PredictionErrors(z)
         if errors.size and errors.max() > self.rti_prediction_tolerance:
-            return False, None
+            return False, None, True
         point = self.program.MakePoint(z, targets)
         violation = self.program.SafetyViolation(point)
-        return violation <= self.rti_constraint_tolerance, point
+        return violation <= self.rti_constraint_tolerance, point, False
 
     def _SolveHierarchy(
         self, point, lower, upper, early_targets=None, warm_token=None, damping=1.0
@@ -260,7 +269,7 @@ class HierarchicalSolver:
             z = result.z
             first_of_several = len(results) == 1 < len(self.stages)
             if early_targets is not None and first_of_several:
-                converged, checked = self._Converged(z, early_targets)
+                converged, checked, _ = self._Converged(z, early_targets)
                 if not converged:
                     why = f"solved through '{stage.name}'"
                     return z, True, why, results, True, checked
