@@ -342,21 +342,15 @@ def _Execute(specs, cache, jobs, executor, address):
         return
 
     # "spawn": every worker starts a clean interpreter (no forked solver or
-    # Meshcat state). A worker is replaced after _RUNS_PER_WORKER runs:
-    # pydrake keeps a finished run's Python systems alive (their reference
-    # cycles through C++), ~16 MB a run, 4.3 GB per worker after the 360
-    # banner/cup runs of one worker otherwise.
+    # Meshcat state). Workers are not recycled (max_tasks_per_child): on
+    # Python 3.12.1 the pool then hung once the first workers retired.
+    # pydrake keeps a finished run's Python systems alive (reference cycles
+    # through C++), ~16 MB a run: 4.3 GB per worker after 360 runs.
     ctx = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(
-        max_workers=jobs, mp_context=ctx, max_tasks_per_child=_RUNS_PER_WORKER
-    ) as pool:
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
         futures = [pool.submit(RunOne, spec, cache) for spec in specs]
         for future in as_completed(futures):
             yield future.result()
-
-
-# Runs before a campaign's worker process is replaced (see _Execute).
-_RUNS_PER_WORKER = 40
 
 
 def _ExecuteRay(specs, cache, address):
