@@ -59,7 +59,7 @@ class HierarchicalSolver:
     ``stage_solvers`` holds one stage solver per entry of ``stages``, in
     priority order. It is a declared seam: any object with the stage
     solvers' ``Solve(point, *, lower, upper, lex_bounds, linearizations,
-    warm_token)``
+    warm_token, guess, damping)``
     returning a :class:`StageResult` may replace an entry (tests use it to
     force a stage to fail).
     """
