@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from sm2ith_drake.cli.experiment import RunScenarioText
+from sm2ith_drake.experiments import campaign
 from sm2ith_drake.experiments.campaign import (
     COLUMNS,
     ReadRows,
@@ -236,6 +237,33 @@ def _cli(*args, cwd):
         cwd=cwd,
         timeout=600,
     )
+
+
+def test_a_campaign_replaces_its_worker_pool_every_chunk_of_runs(tmp_path, monkeypatch):
+    # pydrake leaks ~16 MB a run in a worker, so a long campaign runs in
+    # chunks, each on a fresh pool; every run is still run exactly once.
+    pools = []
+
+    class CountedPool(campaign.ProcessPoolExecutor):
+        def __init__(self, *args, **kwargs):
+            pools.append(self)
+            super().__init__(*args, **kwargs)
+
+    monkeypatch.setattr(campaign, "ProcessPoolExecutor", CountedPool)
+    specs = PlanRuns(
+        STUDIES["adversarial"],
+        runs=1,
+        duration=0.5,
+        variants=("paper", "safe"),
+        people=("orca",),
+    )
+    assert len(specs) == 4
+    rows = list(
+        campaign._Execute(specs, str(tmp_path), 2, "local", None, runs_per_worker=1)
+    )
+    assert len(pools) == 2
+    assert sorted(r["run_id"] for r in rows) == sorted(s.run_id for s in specs)
+    assert all(r["status"] == "ok" for r in rows), [r["error"] for r in rows]
 
 
 def test_mini_campaign_end_to_end(tmp_path):

@@ -327,7 +327,16 @@ def _RecordWallTime(path: Path, wall: float, ran: int, jobs: int) -> float:
     return float(sum(r["wall_time_s"] for r in record))
 
 
-def _Execute(specs, cache, jobs, executor, address):
+# Runs per worker before a local pool is replaced by a fresh one: pydrake
+# keeps a finished run's Python systems alive (reference cycles through
+# C++), ~16 MB a run, so a worker that ran the doorway study's 720 runs
+# would hold ~11 GB. A new pool every RUNS_PER_WORKER × jobs runs keeps a
+# worker under ~2 GB. (Not ProcessPoolExecutor's max_tasks_per_child: on
+# Python 3.12.1 that pool hung once its first workers retired.)
+RUNS_PER_WORKER = 120
+
+
+def _Execute(specs, cache, jobs, executor, address, runs_per_worker=None):
     """Yields rows as runs finish."""
     if not specs:
         return
@@ -340,17 +349,16 @@ def _Execute(specs, cache, jobs, executor, address):
         for spec in specs:
             yield RunOne(spec, cache)
         return
-
     # "spawn": every worker starts a clean interpreter (no forked solver or
-    # Meshcat state). Workers are not recycled (max_tasks_per_child): on
-    # Python 3.12.1 the pool then hung once the first workers retired.
-    # pydrake keeps a finished run's Python systems alive (reference cycles
-    # through C++), ~16 MB a run: 4.3 GB per worker after 360 runs.
+    # Meshcat state); a pool per chunk of runs (RUNS_PER_WORKER).
     ctx = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
-        futures = [pool.submit(RunOne, spec, cache) for spec in specs]
-        for future in as_completed(futures):
-            yield future.result()
+    chunk = jobs * (runs_per_worker or RUNS_PER_WORKER)
+    for first in range(0, len(specs), chunk):
+        with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
+            batch = specs[first : first + chunk]
+            futures = [pool.submit(RunOne, spec, cache) for spec in batch]
+            for future in as_completed(futures):
+                yield future.result()
 
 
 def _ExecuteRay(specs, cache, address):
