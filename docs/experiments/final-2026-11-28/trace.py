@@ -1,0 +1,62 @@
+"""One run of the final re-run, re-simulated and printed around its
+closest approach: the base's position, heading and speed, the gap to
+each person (robot surface to person surface; < 0 is contact), each
+person's speed, and whether the robot's own motion closed the gap.
+
+    python docs/experiments/final-2026-11-28/trace.py RUN_ID [SECONDS]
+
+e.g. RUN_ID doorway_stretch3_2h/safe/orca/SM2ITH/seed4 (a row of this
+directory's CSVs).
+
+SECONDS: how long before and after the closest approach (default 2).
+"""
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from sm2ith_drake.experiments.campaign import ReadRows
+from sm2ith_drake.experiments.runs import LoadRunScenario, SpecFromRow
+from sm2ith_drake.experiments.studies import STUDIES
+from sm2ith_drake.run.metrics import HumanDistances, RobotClosingContacts
+from sm2ith_drake.run.simulation import RunSimulation
+
+HERE = Path(__file__).parent
+
+
+def main(run_id, window):
+    study = next(name for name in STUDIES if run_id.startswith(name))
+    row = next(r for r in ReadRows(HERE / f"{study}.csv") if r["run_id"] == run_id)
+    scenario = LoadRunScenario(SpecFromRow(STUDIES[study], row))
+    result = RunSimulation(scenario, stop_when_done=True)
+    log = result.log
+    robot = result.diagram.GetSubsystemByName("controller").controller.robot
+    t = np.asarray(log.times)
+    x = np.asarray(log.states)
+    P = np.asarray(log.human_positions)
+    V = np.asarray(log.human_velocities)
+    radii = np.array([h.radius for h in scenario.humans])
+    dist = HumanDistances(robot, x, P)
+    gap = dist - radii[None]
+    closing = RobotClosingContacts(robot, x, P, gap, dist)
+    k = int(np.argmin(gap.min(axis=1)))
+    print(f"{run_id}: success {row['success']}, min gap {gap.min():+.3f} m", end="")
+    print(f" at {t[k]:.2f} s")
+    nq = robot.num_positions
+    for i in np.nonzero(np.abs(t - t[k]) <= window)[0][::2]:
+        base = x[i, :3]
+        speed = np.linalg.norm(x[i, nq : nq + 2]) if x.shape[1] > nq + 1 else np.nan
+        people = "  ".join(
+            f"p{j} ({P[i, j, 0]:+.2f},{P[i, j, 1]:+.2f}) gap {gap[i, j]:+.3f} "
+            f"v {np.linalg.norm(V[i, j]):.2f}"
+            for j in range(P.shape[1])
+        )
+        print(
+            f"{t[i]:6.2f} base ({base[0]:+.2f},{base[1]:+.2f},{base[2]:+.2f}) "
+            f"|nu| {speed:.2f} {'CLOSING' if closing[i] else '       '} {people}"
+        )
+
+
+if __name__ == "__main__":
+    main(sys.argv[1], float(sys.argv[2]) if len(sys.argv) > 2 else 2.0)
