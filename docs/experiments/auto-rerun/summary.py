@@ -15,14 +15,13 @@ there.) The README's tables: python docs/experiments/final/summary.py
 docs/experiments/auto-rerun
 """  # noqa: E501
 
+import importlib.util
 from pathlib import Path
 
 import numpy as np
 
 from sm2ith_drake.experiments.campaign import ReadRows
-from sm2ith_drake.experiments.findings import FindingRows
 from sm2ith_drake.experiments.statistics import PairedDifference
-from sm2ith_drake.experiments.studies import STUDIES
 
 HERE = Path(__file__).parent
 COUNTS = ("success", "collision", "robot_closing_contact", "fallbacks")
@@ -59,32 +58,12 @@ def Compare(study):
 
 def Verdicts():
     """Every per-cell verdict of the findings (findings.md) here and in the
-    final re-run; the ones that differ."""
-    changed, total = [], 0
-    for name, study in STUDIES.items():
-        paths = [HERE / f"{name}.csv", HERE.parent / "final" / f"{name}.csv"]
-        if not study.findings or not all(p.exists() for p in paths):
-            continue
-        rows = [ReadRows(p) for p in paths]
-        if len(rows[0]) < len(rows[1]):
-            print(f"\n{name}: {len(rows[0])} of {len(rows[1])} runs, not compared")
-            continue
-        new, old = (
-            {
-                (e["key"], e["claim"], e["humans"], e["people"], e["variant"]): e
-                for e in FindingRows(study, r)
-            }
-            for r in rows
-        )
-        for key in sorted(set(new) & set(old), key=str):
-            total += 1
-            if new[key]["verdict"] != old[key]["verdict"]:
-                changed.append((key, old[key]["verdict"], new[key]["verdict"]))
-    print(f"\nfindings: {len(changed)} of {total} per-cell verdicts differ")
-    for (finding, claim, humans, people, variant), was, now in changed:
-        count = ", " + "/".join(map(str, humans)) + " people" if humans else ""
-        count = "" if count[2:] in claim else count
-        print(f"  {finding} {claim}{count} ({people}, {variant}): {was} -> {now}")
+    final re-run; the ones that differ (final-2026-11-28/compare.py's)."""
+    path = HERE.parent / "final-2026-11-28" / "compare.py"
+    spec = importlib.util.spec_from_file_location("compare", path)
+    compare = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(compare)
+    compare.ChangedVerdicts(HERE, HERE.parent / "final")
 
 
 if __name__ == "__main__":

@@ -20,8 +20,8 @@ from sm2ith_drake.experiments.findings import FindingRows
 from sm2ith_drake.experiments.statistics import PairedDifference
 from sm2ith_drake.experiments.studies import STUDIES
 
-NEW = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).parent
-OLD = Path(sys.argv[2]) if len(sys.argv) > 2 else NEW.parent / "final-2026-11-27"
+NEW = Path(__file__).parent
+OLD = NEW.parent / "final-2026-11-27"
 TOTALS = ("success", "collision", "robot_closing_contact", "fallbacks")
 PAIRED = TOTALS + (
     "time_to_goal",
@@ -93,10 +93,13 @@ def Distinguishable(study, pairs):
     return found, varying
 
 
-def ChangedVerdicts():
+def ChangedVerdicts(new_dir=None, old_dir=None):
+    """Prints the per-cell verdicts of the findings that differ between
+    two study directories (default NEW and OLD), with the new CIs."""
+    new_dir, old_dir = new_dir or NEW, old_dir or OLD
     changed, total = [], 0
     for name, study in STUDIES.items():
-        paths = [NEW / f"{name}.csv", OLD / f"{name}.csv"]
+        paths = [new_dir / f"{name}.csv", old_dir / f"{name}.csv"]
         if not study.findings or not all(p.exists() for p in paths):
             continue
         rows = [ReadRows(p) for p in paths]
@@ -128,6 +131,9 @@ def ChangedVerdicts():
 
 
 if __name__ == "__main__":
+    if len(sys.argv) > 1:
+        NEW = Path(sys.argv[1])
+        OLD = Path(sys.argv[2]) if len(sys.argv) > 2 else NEW.parent / OLD.name
     print(f"{NEW} against {OLD}")
     print("runs with (arrival, contact, robot closing in, fallback), new vs old:")
     studies = [s for s in STUDIES if Pairs(s)]
