@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sm2ith_drake.control import mpc_controller
 from sm2ith_drake.experiments.campaign import ReadRows
 from sm2ith_drake.experiments.runs import LoadRunScenario, SpecFromRow
 from sm2ith_drake.experiments.studies import STUDIES
@@ -29,6 +30,17 @@ def main(run_id, window):
     study = next(name for name in STUDIES if run_id.startswith(name))
     row = next(r for r in ReadRows(HERE / f"{study}.csv") if r["run_id"] == run_id)
     scenario = LoadRunScenario(SpecFromRow(STUDIES[study], row))
+    slacks = []
+    step = mpc_controller.MpcController.Step
+
+    def Step(self, state, **kwargs):
+        new = step(self, state, **kwargs)
+        cbf, solution = self.program.cbf, new.last_solution
+        if cbf is not None and solution is not None:
+            slacks.append((kwargs["time_now"], solution, cbf))
+        return new
+
+    mpc_controller.MpcController.Step = Step
     result = RunSimulation(scenario, stop_when_done=True)
     log = result.log
     robot = result.diagram.GetSubsystemByName("controller").controller.robot
@@ -56,6 +68,24 @@ def main(run_id, window):
             f"{t[i]:6.2f} base ({base[0]:+.2f},{base[1]:+.2f},{base[2]:+.2f}) "
             f"|nu| {speed:.2f} {'CLOSING' if closing[i] else '       '} {people}"
         )
+
+    print("control step: DT-CBF slack per person slot (knots 1-2 / horizon), guard")
+    for time_now, solution, cbf in slacks:
+        if abs(time_now - t[k]) > window:
+            continue
+        N, per_step = len(solution.q) - 1, cbf.rows_per_step
+        value = solution.z[cbf.slack]
+        H, C = cbf._H, cbf._C  # noqa: SLF001 (a diagnostic reads the layout)
+        people = value[: N * per_step].reshape(N, per_step)[:, : H * C]
+        people = people.reshape(N, H, C).max(axis=2)  # (N, H)
+        guard = value[N * per_step :]
+        ids = solution.human_slot_ids
+        text = "  ".join(
+            f"slot {j} (id {ids[j] if ids is not None else '-'}) "
+            f"{people[:2, j].max():.3f} / {people[:, j].max():.3f}"
+            for j in range(H)
+        )
+        print(f"{time_now:6.2f} {text}  guard {guard.max() if guard.size else 0:.3f}")
 
 
 if __name__ == "__main__":
