@@ -136,11 +136,12 @@ if __name__ == "__main__":
         OLD = Path(sys.argv[2]) if len(sys.argv) > 2 else NEW.parent / OLD.name
     print(f"{NEW} against {OLD}")
     print("runs with (arrival, contact, robot closing in, fallback), new vs old:")
-    studies = [s for s in STUDIES if Pairs(s)]
-    for study in studies:
-        Totals(study, Pairs(study))
+    pairs = {study: Pairs(study) for study in STUDIES}
+    pairs = {study: runs for study, runs in pairs.items() if runs}
+    for study, runs in pairs.items():
+        Totals(study, runs)
     print("paired differences whose 95 % CI excludes 0 (mean [CI]):")
-    for study in studies:
-        found, varying = Distinguishable(study, Pairs(study))
+    for study, runs in pairs.items():
+        found, varying = Distinguishable(study, runs)
         print(f"  {study}: {found} of {varying} varying paired metrics")
     ChangedVerdicts()
