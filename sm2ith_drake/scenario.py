@@ -307,6 +307,11 @@ class PredictionConfig:
     # to the robot only, and the factorization cost linear in the number of
     # people (see README, People).
     neighbor_derivatives: bool = False
+    # The steps of the horizon over which each person's relaxed-ORCA QP is
+    # embedded (not in the paper; SICNav's ``orca_kkt_horiz``): after them a
+    # person holds its last predicted action, and the QP carries no KKT
+    # rows. 0: the whole horizon (the paper). Fewer steps, a smaller QP.
+    kkt_steps: int = 0
     # Turn a v_pref that walks into a wall onto the nearest free line (the
     # person steers for the opening; control/prediction/intent.py).
     steer_around_walls: bool = False

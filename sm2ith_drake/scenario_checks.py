@@ -264,6 +264,7 @@ def _ValidatePeople(scenario: Scenario) -> None:
         "max_neighbors",
         "max_extra_humans",
         "neighbor_hysteresis",
+        "kkt_steps",
     ):
         _NonNegative(getattr(pr, name), f"prediction.{name}")
     if pr.max_speed_factor > 0 and not pr.max_speed_floor <= pr.max_speed:

@@ -47,7 +47,7 @@ def _Tasks(robot):
     ]
 
 
-def _Point(robot_name, with_people):
+def _Point(robot_name, with_people, kkt_steps=0):
     robot = MobileManipulator(robot_name)
     tasks = _Tasks(robot)
     wall = ObstacleConfig(vertices=[[1.5, -0.8], [4.5, -0.8]])
@@ -61,6 +61,7 @@ def _Point(robot_name, with_people):
             max_neighbors=1,
             neighbor_derivatives=True,
             max_extra_humans=2,  # the two farther people: barrier rows
+            kkt_steps=kkt_steps,
         )
     c = MpcController(
         robot,
@@ -102,10 +103,19 @@ def _Groups(c):
     return groups + list(c.program.task_groups.values())
 
 
-@pytest.mark.parametrize("with_people", [False, True], ids=["alone", "people"])
+@pytest.mark.parametrize(
+    "with_people, kkt_steps",
+    [(False, 0), (True, 0), (True, HORIZON - 1)],
+    ids=["alone", "people", "people_held_last_step"],
+)
 @pytest.mark.parametrize("robot_name", ["ridgeback_ur10", "stretch3"])
-def test_every_group_jacobian_matches_central_differences(robot_name, with_people):
-    c, z, targets = _Point(robot_name, with_people)
+def test_every_group_jacobian_matches_central_differences(
+    robot_name, with_people, kkt_steps
+):
+    """Every group's Jacobian against central differences of its values;
+    with ``kkt_steps`` < N the last step holds the action of the one before
+    (rows a_k − a_{k−1}) instead of its KKT rows."""
+    c, z, targets = _Point(robot_name, with_people, kkt_steps)
     program = c.program
     groups = _Groups(c)
     names = {g.name for g in groups}
@@ -124,7 +134,9 @@ def test_every_group_jacobian_matches_central_differences(robot_name, with_peopl
     # here), every group evaluated at it: a dependence on a column that a
     # group's pattern leaves out is caught too.
     differenced = np.unique(np.concatenate(list(columns.values())))
-    assert differenced.size == z.size
+    # Past kkt_steps no row reads the multipliers (they are pinned to 0).
+    unused = c.predictor.lam[kkt_steps:].ravel() if kkt_steps else []
+    assert np.setdiff1d(np.arange(z.size), differenced).tolist() == sorted(unused)
     for i in differenced:
         zp, zm = z.copy(), z.copy()
         zp[i] += STEP

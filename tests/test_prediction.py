@@ -6,6 +6,7 @@ import pytest
 from scipy.optimize import minimize
 
 from sm2ith_drake.control.mpc_controller import MpcController
+from sm2ith_drake.control.prediction.orca_kkt import PredictionConsistency
 from sm2ith_drake.control.prediction.slots import FilterPreferredVelocities
 from sm2ith_drake.humans import kernels
 from sm2ith_drake.humans.half_planes import orca_agent_half_planes
@@ -254,6 +255,53 @@ def test_warm_start_is_an_exact_kkt_point():
     # The human dynamics hold along the predicted path.
     p, a = z[c.predictor.p], z[c.predictor.a]
     np.testing.assert_allclose(p[1:], p[:-1] + 0.2 * a, atol=1e-12)
+
+
+def test_past_kkt_steps_each_person_holds_its_last_action():
+    """prediction.kkt_steps (SICNav's orca_kkt_horiz): the warm start is an
+    exact KKT point over the first T steps and holds the last action after
+    them; a solved plan keeps that structure, its first T actions are the
+    re-solved relaxed-ORCA QPs', and the QP is smaller."""
+    T = 3
+    robot, c = _KktController("ridgeback_ur10", 2, kkt_steps=T)
+    _, full = _KktController("ridgeback_ur10", 2)
+    pred = c.predictor
+    assert pred.kkt_steps == T < pred.N
+    kkt_rows = sum(
+        g.num_rows for g, _, _ in c.program.ConstraintGroups() if "orca_kkt" in g.name
+    )
+    full_rows = sum(
+        g.num_rows
+        for g, _, _ in full.program.ConstraintGroups()
+        if "orca_kkt" in g.name
+    )
+    assert kkt_rows < 0.6 * full_rows
+    q0, nu0 = robot.default_q, np.zeros(robot.num_velocities)
+    _SetHumans(c, _HeadOn(2))
+    z = c.WarmStart(c.InitialState(), q0, nu0)
+    stat, cons, comp = pred.Residuals(z, c.program.layout)
+    assert stat.shape[0] == T
+    assert np.max(np.abs(stat)) < 1e-6 and np.max(cons) < 1e-9
+    a, lam = z[pred.a], z[pred.lam]
+    np.testing.assert_array_equal(a[T:], np.broadcast_to(a[T - 1], a[T:].shape))
+    assert np.all(lam[T:] == 0) and np.any(lam[:T] != 0)
+    state, _ = _Step(
+        c,
+        c.InitialState(),
+        None,
+        _HeadOn(2),
+        time_now=0.0,
+        q0=q0,
+        nu0=nu0,
+        targets={"base_position": np.array([4.0, 0.0])},
+    )
+    assert state.record.mode == "solved", state.record.status
+    z = state.last_solution.z
+    a = z[pred.a]
+    np.testing.assert_allclose(a[T:], np.broadcast_to(a[T - 1], a[T:].shape), atol=1e-6)
+    errors = PredictionConsistency(pred, z, c.program.layout)
+    assert errors.shape == (T, 2)
+    assert np.max(errors) < 1e-2
 
 
 def _PredictedHuman(predictor, base_target):

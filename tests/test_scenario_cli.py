@@ -179,6 +179,7 @@ def test_bench_writes_the_documented_json(tmp_path):
         "predictor",
         "mean_passes",
         "max_neighbors",
+        "kkt_steps",
     ):
         assert key in data, key
     assert data["steps"] == 5 and data["humans"] == 1 and data["predictor"] == "cvmm"

@@ -116,6 +116,7 @@ def RunBenchmark(
         "qp_solver": StageQpSolver(scenario.controller.qp_solver),
         "rti_iterations": scenario.controller.rti_iterations,
         "max_neighbors": scenario.prediction.max_neighbors,
+        "kkt_steps": scenario.prediction.kkt_steps,
         "scenario_text": scenario_text,
         "steps": len(records),
         "median_ms": float(np.median(wall)),

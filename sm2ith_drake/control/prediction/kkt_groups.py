@@ -20,10 +20,12 @@ from sm2ith_drake.robots.planar_base import NumBaseVelocities, VelocityMapPatter
 
 
 def KktTerms(pred, z, v, n, rho, no, rho_o):
-    """Stationarity in a, primal constraints c and λ·c at z (module doc)."""
+    """Stationarity in a, primal constraints c and λ·c at z (module doc),
+    over the T steps the half-planes n (T, H, A, 2) are of."""
     cfg = pred.config
-    a = z[pred.a]  # (N, H, 2)
-    lam = z[pred.lam]  # (N, H, R)
+    T = n.shape[0]
+    a = z[pred.a[:T]]  # (T, H, 2)
+    lam = z[pred.lam[:T]]  # (T, H, R)
     A = pred.num_agent_lines
     lam_s, lam_a = lam[..., 0], lam[..., 1]
     lam_i, lam_o = lam[..., 2 : 2 + A], lam[..., 2 + A :]
@@ -71,7 +73,9 @@ class KktPointData:
 
 class KktBlocks:
     """The local columns of every (k, j) block, shared by both KKT groups,
-    and the derivatives at a point (computed once per point).
+    and the derivatives at a point (computed once per point). Blocks exist
+    for the T = ``pred.kkt_steps`` steps that embed the QP (T = N unless
+    configured); the N below is that T.
 
     Local columns of block (k, j): a (2), λ (R), then the state: own p (2),
     own v (2), each human neighbour's p and v (4 each), the robot's
@@ -103,19 +107,19 @@ class KktBlocks:
     def _Columns(self):
         """(N, H, width) global column of every local column (−1: constant)."""
         pred, layout = self.pred, self.layout
-        N, H, K = pred.N, pred.num_slots, pred.num_neighbors
+        N, H, K = pred.kkt_steps, pred.num_slots, pred.num_neighbors
         C = np.full((N, H, self.width), -1, dtype=int)
-        C[:, :, 0:2] = pred.a
-        C[:, :, self.ilam : self.ilam + self.num_multipliers] = pred.lam
-        C[:, :, self.io : self.io + 2] = pred.p[:-1]
-        C[1:, :, self.io + 2 : self.io + 4] = pred.a[:-1]
+        C[:, :, 0:2] = pred.a[:N]
+        C[:, :, self.ilam : self.ilam + self.num_multipliers] = pred.lam[:N]
+        C[:, :, self.io : self.io + 2] = pred.p[:N]
+        C[1:, :, self.io + 2 : self.io + 4] = pred.a[: N - 1]
         for i in range(K if pred.config.neighbor_derivatives else 0):
             other = pred.neighbors[:, i]
             c0 = self.inb + 4 * i
-            C[:, :, c0 : c0 + 2] = pred.p[:-1][:, other]
-            C[1:, :, c0 + 2 : c0 + 4] = pred.a[:-1][:, other]
-        C[:, :, self.iq : self.inu] = np.asarray(layout.q)[:-1, None, :]
-        C[:, :, self.inu :] = np.asarray(layout.nu)[:-1, None, : self.nb]
+            C[:, :, c0 : c0 + 2] = pred.p[:N][:, other]
+            C[1:, :, c0 + 2 : c0 + 4] = pred.a[: N - 1][:, other]
+        C[:, :, self.iq : self.inu] = np.asarray(layout.q)[:N, None, :]
+        C[:, :, self.inu :] = np.asarray(layout.nu)[:N, None, : self.nb]
         return C
 
     def UpdatePattern(self):
@@ -129,7 +133,7 @@ class KktBlocks:
         """The structural nonzeros of ``mask`` (rows, width) in every block:
         (rows, cols, gather) with ``gather`` the flat index of each value in
         a dense (N, H, rows, width) array of local Jacobians."""
-        N, H = self.pred.N, self.pred.num_slots
+        N, H = self.pred.kkt_steps, self.pred.num_slots
         rr, cc = np.nonzero(mask)
         cols = self.columns[:, :, cc]  # (N, H, nnz)
         block = np.arange(N * H).reshape(N, H)[..., None]
@@ -163,7 +167,7 @@ class KktBlocks:
         )
         drv = base[..., 2:4] + body[..., 2:4]  # w.r.t. the base's velocity
         q, nu = e.robot.q, e.robot.nu
-        N = pred.N
+        N = pred.kkt_steps
         G = pred.robot.GStack(q[:N])[:, :2, : self.nb]
         dth = pred.robot.dGnu_dqStack(q[:N], nu[:N])[:, :2, 2]
         for k in range(N):
@@ -176,9 +180,10 @@ class KktBlocks:
             return self._cache
         pred, layout = self.pred, self.layout
         z = point.z
-        p = z[pred.p[:-1]]
-        v = pred.HumanVelocities(z)
-        robot = pred.RobotViewOf(z, layout, point.kin)
+        N = pred.kkt_steps
+        p = z[pred.p[:N]]
+        v = pred.HumanVelocities(z)[:N]
+        robot = pred.RobotViewOf(z, layout, point.kin, steps=N)
         planes, derivatives, body = pred.HalfPlaneDerivatives(p, v, robot)
         n, rho, no, rho_o = planes
         stat, c, lc = KktTerms(pred, z, v, n, rho, no, rho_o)
@@ -190,27 +195,37 @@ class KktBlocks:
 
 class KktEqualities(ConstraintGroup):
     """Stationarity in a of every human's QP (eq. smith_kkt_stationarity)
-    and the human dynamics (eq. smith_humdyn), as = 0 rows."""
+    for the first T = kkt_steps steps, a held action a_k = a_{k−1} after
+    them, and the human dynamics (eq. smith_humdyn), as = 0 rows."""
 
     name = "orca_kkt_equalities"
 
     def __init__(self, pred, blocks):
         self.pred = pred
         self.blocks = blocks
-        N, H = pred.N, pred.num_slots
-        self.num_kkt = N * H * 2
-        self.num_rows = self.num_kkt + N * H * 2
+        N, H, T = pred.N, pred.num_slots, pred.kkt_steps
+        self.num_kkt = T * H * 2
+        num_hold = (N - T) * H * 2
+        self.num_rows = self.num_kkt + num_hold + N * H * 2
         b = blocks
         # Stationarity component d depends on a_d (not the other component),
         # every λ and the whole local state (ν only where it moves the base).
         self.mask = np.ones((2, b.width), dtype=bool)
         self.mask[:, 0:2] = np.eye(2, dtype=bool)
         self.mask[:, b.inu :] = b.planar_nu
-        # Dynamics, per component: p_{k+1}, p_k, a_k.
-        self._dyn_rows = np.repeat(self.num_kkt + np.arange(N * H * 2), 3)
-        self._dyn_cols = np.stack(
+        # Held actions, per component: a_k, a_{k−1}; then the dynamics:
+        # p_{k+1}, p_k, a_k.
+        hold_rows = np.repeat(self.num_kkt + np.arange(num_hold), 2)
+        hold_cols = np.stack([pred.a[T:].ravel(), pred.a[T - 1 : -1].ravel()], 1)
+        dyn_rows = np.repeat(self.num_kkt + num_hold + np.arange(N * H * 2), 3)
+        dyn_cols = np.stack(
             [pred.p[1:].ravel(), pred.p[:-1].ravel(), pred.a.ravel()], axis=1
-        ).ravel()
+        )
+        self._dyn_rows = np.concatenate([hold_rows, dyn_rows])
+        self._dyn_cols = np.concatenate([hold_cols.ravel(), dyn_cols.ravel()])
+        self._dyn_vals = np.concatenate(
+            [np.tile([1.0, -1.0], num_hold), np.tile([1.0, -1.0, -pred.dt], N * H * 2)]
+        )
         blocks.groups.append(self)
         self.UpdatePattern()
 
@@ -223,8 +238,13 @@ class KktEqualities(ConstraintGroup):
         pred, b = self.pred, self.blocks
         e = b.Evaluate(point)
         z = point.z
-        N, H, A, R = pred.N, pred.num_slots, pred.num_agent_lines, b.num_multipliers
-        a, lam = z[pred.a], z[pred.lam]
+        N, H, A, R = (
+            pred.kkt_steps,
+            pred.num_slots,
+            pred.num_agent_lines,
+            b.num_multipliers,
+        )
+        a, lam = z[pred.a[:N]], z[pred.lam[:N]]
         v = e.v
         J = np.zeros((N, H, 2, b.width))
         eye = np.eye(2)
@@ -242,12 +262,12 @@ class KktEqualities(ConstraintGroup):
         dX_own[..., 2:4] -= 2 * lam[..., 1, None, None] * eye
         dX_other = -np.einsum("khi,khidx->khdix", lam_i, dn[..., 4:])
         b.StateDerivatives(J, slice(0, 2), dX_own, dX_other, e)
-        # Dynamics p_{k+1} − p_k − Δt a_k.
-        p = z[pred.p]
-        g_dyn = p[1:] - p[:-1] - pred.dt * a
-        vals_dyn = np.tile([1.0, -1.0, -pred.dt], N * H * 2)
-        g = np.concatenate([e.stat.reshape(-1), g_dyn.reshape(-1)])
-        return g, np.concatenate([J.reshape(-1)[self._gather], vals_dyn])
+        # Held actions a_k − a_{k−1}, dynamics p_{k+1} − p_k − Δt a_k.
+        p, a_all = z[pred.p], z[pred.a]
+        g_hold = a_all[N:] - a_all[N - 1 : -1]
+        g_dyn = p[1:] - p[:-1] - pred.dt * a_all
+        g = np.concatenate([e.stat.ravel(), g_hold.ravel(), g_dyn.ravel()])
+        return g, np.concatenate([J.reshape(-1)[self._gather], self._dyn_vals])
 
 
 class KktInequalities(ConstraintGroup):
@@ -260,7 +280,12 @@ class KktInequalities(ConstraintGroup):
     def __init__(self, pred, blocks):
         self.pred = pred
         self.blocks = blocks
-        N, H, A, K = pred.N, pred.num_slots, pred.num_agent_lines, pred.num_neighbors
+        N, H, A, K = (
+            pred.kkt_steps,
+            pred.num_slots,
+            pred.num_agent_lines,
+            pred.num_neighbors,
+        )
         b, R = blocks, blocks.num_multipliers
         self.ri = 2 * R
         self.num_rows = N * H * self.ri
@@ -294,7 +319,7 @@ class KktInequalities(ConstraintGroup):
         R = self.blocks.num_multipliers
         lo = np.concatenate([np.full(R, -np.inf), np.full(R, -eps)])
         hi = np.concatenate([np.zeros(R), np.full(R, np.inf)])
-        count = self.pred.N * self.pred.num_slots
+        count = self.pred.kkt_steps * self.pred.num_slots
         return np.tile(lo, count), np.tile(hi, count)
 
     def Eval(self, point):
@@ -302,8 +327,13 @@ class KktInequalities(ConstraintGroup):
         e = b.Evaluate(point)
         z = point.z
         cfg = pred.config
-        N, H, A, R = pred.N, pred.num_slots, pred.num_agent_lines, b.num_multipliers
-        a, lam = z[pred.a], z[pred.lam]
+        N, H, A, R = (
+            pred.kkt_steps,
+            pred.num_slots,
+            pred.num_agent_lines,
+            b.num_multipliers,
+        )
+        a, lam = z[pred.a[:N]], z[pred.lam[:N]]
         v, c = e.v, e.c
         il = b.ilam
         dc = np.zeros((N, H, R, b.width))

@@ -100,6 +100,8 @@ class OrcaKkt(Predictor):
         self.num_agent_lines = m.num_agent_lines
         self.num_static_lines = m.num_static_lines
         self.num_multipliers = m.num_multipliers
+        # The steps with KKT rows; later ones hold the last action.
+        self.kkt_steps = m.kkt_steps
         # neighbors[j]: the slots whose lines slot j has (from the prediction).
         self.neighbors = DefaultNeighbors(self.num_slots, self.num_neighbors)
         self._warm_start = None
@@ -149,6 +151,8 @@ class OrcaKkt(Predictor):
         them pinned."""
         lower[self.p[0]] = upper[self.p[0]] = self.p0
         lower[self.lam] = 0.0
+        # Past kkt_steps a person holds its last action: no QP, no λ.
+        upper[self.lam[self.kkt_steps :]] = 0.0
         empty = ~self.active
         if empty.any():
             parked = np.broadcast_to(self.p0[empty], self.p[1:, empty].shape)
@@ -176,9 +180,11 @@ class OrcaKkt(Predictor):
         a = z[self.a]
         return np.concatenate([self.v0[None], a[:-1]], axis=0)
 
-    def RobotViewOf(self, z, layout, kin=None):
-        """The RobotView of z's robot plan, steps 0 … N−1."""
-        return self.model.RobotView(z[layout.q[:-1]], z[layout.nu[:-1]], kin)
+    def RobotViewOf(self, z, layout, kin=None, steps=None):
+        """The RobotView of z's robot plan, steps 0 … ``steps``−1 (None:
+        N−1)."""
+        T = self.N if steps is None else steps
+        return self.model.RobotView(z[layout.q[:T]], z[layout.nu[:T]], kin)
 
     def HalfPlanes(self, positions, velocities, robot):
         """OrcaModel.HalfPlanes with this step's neighbour sets."""
@@ -189,11 +195,13 @@ class OrcaKkt(Predictor):
         return self.model.HalfPlaneDerivatives(p, v, robot, self.neighbors, h)
 
     def LocalState(self, z, layout):
-        """The states the k-th QPs depend on, k = 0 … N−1: human positions
-        and velocities (N, H, 2) and the RobotView."""
-        p = z[self.p[:-1]]
-        v = self.HumanVelocities(z)
-        return p, v, self.RobotViewOf(z, layout)
+        """The states the k-th QPs depend on, k = 0 … T−1 (T =
+        kkt_steps): human positions and velocities (T, H, 2) and the
+        RobotView."""
+        T = self.kkt_steps
+        p = z[self.p[:T]]
+        v = self.HumanVelocities(z)[:T]
+        return p, v, self.RobotViewOf(z, layout, steps=T)
 
     def Residuals(self, z, layout):
         """KKT residuals at z (for diagnostics and tests): stationarity (N,
@@ -239,7 +247,8 @@ class OrcaKkt(Predictor):
 def PredictionConsistency(predictor, z, layout) -> np.ndarray:
     """The honest check of the KKT embedding: re-solve every active human's
     relaxed-ORCA QP at the predicted states of plan z and return
-    ‖a_QP − a_predicted‖ for every (k, j) (m/s), shape (N, active)."""
+    ‖a_QP − a_predicted‖ for every (k, j) (m/s), shape (T, active) over the
+    T = kkt_steps steps that embed the QP."""
     with PROFILER.Phase("prediction_check"):
         return _PredictionConsistency(predictor, z, layout)
 
@@ -247,9 +256,10 @@ def PredictionConsistency(predictor, z, layout) -> np.ndarray:
 def _PredictionConsistency(predictor, z, layout):
     p, v, robot = predictor.LocalState(z, layout)
     n, rho, no, rho_o = predictor.HalfPlanes(p, v, robot)
-    a = z[predictor.a]
+    N = predictor.kkt_steps
+    a = z[predictor.a[:N]]
     active = np.nonzero(predictor.active)[0]
-    N, B = predictor.N, len(active)
+    B = len(active)
     A, S = predictor.num_agent_lines, predictor.num_static_lines
     sol = predictor.model.SolveHumanQps(
         predictor.v_pref[np.tile(active, N)],

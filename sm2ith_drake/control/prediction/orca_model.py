@@ -50,6 +50,10 @@ class OrcaModel:
         self.num_static_lines = len(self.segments)
         # Constraints (multipliers) per human: speed, acceleration, lines.
         self.num_multipliers = 2 + self.num_agent_lines + self.num_static_lines
+        # The steps whose actions solve the relaxed-ORCA QP; later ones hold
+        # the last of them (SICNav's ``orca_kkt_horiz``; 0: the horizon).
+        steps = int(config.kkt_steps)
+        self.kkt_steps = horizon if steps <= 0 else min(steps, horizon)
         K = self.num_neighbors
         # Combined radii (the nearest body's is set per person and step).
         self._radius = np.full(self.num_agent_lines, 2 * self.human_radius)
@@ -226,7 +230,9 @@ class OrcaModel:
         standalone relaxed-ORCA QP against the robot's trajectory ``robot``
         (a RobotView of steps 0 … N−1). Returns positions (N+1, H, 2),
         actions (N, H, 2) and multipliers (N, H, R): an exact KKT point of
-        every human's QP. ``p0`` overrides the slots' start positions."""
+        every human's QP for the first ``kkt_steps`` steps, after which
+        every human holds its last action (multipliers 0). ``p0`` overrides
+        the slots' start positions."""
         N, H, R = self.N, self.num_slots, self.num_multipliers
         positions = np.empty((N + 1, H, 2))
         actions = np.empty((N, H, 2))
@@ -245,6 +251,11 @@ class OrcaModel:
         robot_p, robot_v = np.ascontiguousarray(robot.p), np.ascontiguousarray(robot.v)
         for k in range(N):
             p = positions[k]
+            if k >= self.kkt_steps:
+                actions[k] = actions[k - 1]
+                multipliers[k] = 0.0
+                positions[k + 1] = p + self.dt * actions[k]
+                continue
             with PROFILER.Phase("orca_lines"):
                 kernels.step_half_planes(
                     p,
