@@ -174,6 +174,23 @@ class KktBlocks:
             J[k, :, rows, self.iq + 2] += drv[k] @ dth[k]
             J[k, :, rows, self.inu :] += drv[k] @ G[k]
 
+    def Dimensions(self):
+        """(T, H, A, R): the blocks' steps and people, agent lines per
+        person and multipliers per person and step."""
+        pred = self.pred
+        return (
+            pred.kkt_steps,
+            pred.num_slots,
+            pred.num_agent_lines,
+            self.num_multipliers,
+        )
+
+    def EvaluateBlocks(self, point):
+        """Evaluate(point) and the blocks' actions a (T, H, 2) and
+        multipliers λ (T, H, R) at it."""
+        T, z = self.pred.kkt_steps, point.z
+        return self.Evaluate(point), z[self.pred.a[:T]], z[self.pred.lam[:T]]
+
     def Evaluate(self, point) -> "KktPointData":
         """Everything both groups need at a point, cached by the point."""
         if self._cache is not None and self._cache.point is point:
@@ -236,15 +253,9 @@ class KktEqualities(ConstraintGroup):
 
     def Eval(self, point):
         pred, b = self.pred, self.blocks
-        e = b.Evaluate(point)
+        e, a, lam = b.EvaluateBlocks(point)
         z = point.z
-        N, H, A, R = (
-            pred.kkt_steps,
-            pred.num_slots,
-            pred.num_agent_lines,
-            b.num_multipliers,
-        )
-        a, lam = z[pred.a[:N]], z[pred.lam[:N]]
+        N, H, A, R = b.Dimensions()
         v = e.v
         J = np.zeros((N, H, 2, b.width))
         eye = np.eye(2)
@@ -324,16 +335,9 @@ class KktInequalities(ConstraintGroup):
 
     def Eval(self, point):
         pred, b = self.pred, self.blocks
-        e = b.Evaluate(point)
-        z = point.z
+        e, a, lam = b.EvaluateBlocks(point)
         cfg = pred.config
-        N, H, A, R = (
-            pred.kkt_steps,
-            pred.num_slots,
-            pred.num_agent_lines,
-            b.num_multipliers,
-        )
-        a, lam = z[pred.a[:N]], z[pred.lam[:N]]
+        N, H, A, R = b.Dimensions()
         v, c = e.v, e.c
         il = b.ilam
         dc = np.zeros((N, H, R, b.width))
