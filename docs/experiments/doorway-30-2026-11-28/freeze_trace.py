@@ -1,0 +1,87 @@
+"""One doorway run re-simulated and printed control step by control step
+over a time window: the base's pose and speed, the planned base's
+progress over the horizon, each person's position, gap (robot surface to
+person surface) and speed, and whom the `safe` variant's guard holds.
+For reading a freeze: what the robot faces while it stands.
+
+    python docs/experiments/doorway-30-2026-11-28/freeze_trace.py RUN_ID [T0 T1]
+
+RUN_ID: a row of this directory's doorway.csv, e.g.
+doorway_stretch3_2h/safe/instructed/SM2ITH/seed6.
+"""
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from sm2ith_drake.control import mpc_controller
+from sm2ith_drake.experiments.campaign import ReadRows
+from sm2ith_drake.experiments.runs import LoadRunScenario, SpecFromRow
+from sm2ith_drake.experiments.studies import STUDIES
+from sm2ith_drake.run.metrics import HumanDistances
+from sm2ith_drake.run.simulation import RunSimulation
+
+HERE = Path(__file__).parent
+
+
+def main(run_id, t0, t1):
+    row = next(r for r in ReadRows(HERE / "doorway.csv") if r["run_id"] == run_id)
+    scenario = LoadRunScenario(SpecFromRow(STUDIES["doorway"], row))
+    steps = []
+    step = mpc_controller.MpcController.Step
+
+    def Step(self, state, **kwargs):
+        new = step(self, state, **kwargs)
+        prediction = kwargs.get("prediction")
+        solution = new.last_solution
+        if t0 <= kwargs["time_now"] <= t1 and solution is not None:
+            guarded = []
+            if prediction is not None and prediction.guarded.size:
+                ids = np.asarray(prediction.slot_ids)
+                guarded = ids[np.asarray(prediction.guarded, dtype=bool)].tolist()
+            base = solution.q[:, :2]
+            steps.append(
+                (
+                    kwargs["time_now"],
+                    new.record.mode,
+                    np.linalg.norm(base[-1] - base[0]),
+                    guarded,
+                )
+            )
+        return new
+
+    mpc_controller.MpcController.Step = Step
+    result = RunSimulation(scenario, stop_when_done=True)
+    log = result.log
+    robot = result.diagram.GetSubsystemByName("controller").controller.robot
+    t = np.asarray(log.times)
+    x = np.asarray(log.states)
+    P = np.asarray(log.human_positions)
+    V = np.asarray(log.human_velocities)
+    radii = np.array([h.radius for h in scenario.humans])
+    gap = HumanDistances(robot, x, P) - radii[None]
+    nq = robot.num_positions
+    print(
+        f"{run_id}: success {row['success']}, freezing {row['freezing_time']:.1f} s, "
+        f"min gap {gap.min():+.3f} m"
+    )
+    print("  t     mode    base (x, y, θ)       |ν_xy| plan moves  guarded  people")
+    for time_now, mode, moves, guarded in steps:
+        i = int(np.argmin(np.abs(t - time_now)))
+        base = x[i, :3]
+        speed = np.linalg.norm(x[i, nq : nq + 2])
+        people = "  ".join(
+            f"p{j} ({P[i, j, 0]:+.2f},{P[i, j, 1]:+.2f}) gap {gap[i, j]:+.2f} "
+            f"v {np.linalg.norm(V[i, j]):.2f}"
+            for j in range(P.shape[1])
+        )
+        print(
+            f"{time_now:6.2f} {mode:7s} ({base[0]:+.2f},{base[1]:+.2f},{base[2]:+.2f}) "
+            f"{speed:.2f}  {moves:.2f} m  {str(guarded):8s} {people}"
+        )
+
+
+if __name__ == "__main__":
+    window = (float(sys.argv[2]), float(sys.argv[3])) if len(sys.argv) > 3 else (0, 1e9)
+    main(sys.argv[1], *window)
