@@ -58,6 +58,12 @@ def test_bad_values_rejected():
             scenario_name="minimal",
             scenario_text="{tasks: [{kind: dance}]}",
         )
+    with pytest.raises(ScenarioError, match="prediction.kkt_steps must be ≥ 0"):
+        LoadScenario(
+            filename=CONFLICT,
+            scenario_name="minimal",
+            scenario_text="{prediction: {kkt_steps: -1}}",
+        )
 
 
 def _cli(*args, cwd=None):
