@@ -51,22 +51,26 @@ def main():
         for variant in ("safe", "paper"):
             s = Success(rows, "SM2ITH", variant)
             others = {m: Success(rows, m, variant) for m in ("CVMM", "React")}
-            keys = sorted(set(s).intersection(*others.values()))
-            totals = " / ".join(
-                f"{m} {int(sum(d[k] for k in keys))} ("
-                + "/".join(
-                    str(int(sum(d[k] for k in keys if k[0] == c))) for c in COUNTS
-                )
-                + ")"
-                for m, d in (("SM²ITH", s), *others.items())
-            )
-            print(f"\n{label}, {variant}: {len(keys)} paired runs; arrivals {totals}")
-            for count in (None, *COUNTS):
-                ks = [k for k in keys if count is None or k[0] == count]
-                name = "pooled" if count is None else f"{count} people"
-                by = "  ".join(f"− {m} {_Cell(s, d, ks)}" for m, d in others.items())
-                got = int(np.sum([s[k] for k in ks]))
-                print(f"  {name:9s} SM²ITH {got:3d}/{len(ks)}  {by}")
+            PrintPaired(f"{label}, {variant}", s, others)
+
+
+def PrintPaired(title, s, others):
+    """Arrivals and SM²ITH's paired differences, pooled and per count:
+    ``s`` and each of ``others`` map (count, seed) → 1.0 / 0.0."""
+    keys = sorted(set(s).intersection(*others.values()))
+    totals = " / ".join(
+        f"{m} {int(sum(d[k] for k in keys))} ("
+        + "/".join(str(int(sum(d[k] for k in keys if k[0] == c))) for c in COUNTS)
+        + ")"
+        for m, d in (("SM²ITH", s), *others.items())
+    )
+    print(f"\n{title}: {len(keys)} paired runs; arrivals {totals}")
+    for count in (None, *COUNTS):
+        ks = [k for k in keys if count is None or k[0] == count]
+        name = "pooled" if count is None else f"{count} people"
+        by = "  ".join(f"− {m} {_Cell(s, d, ks)}" for m, d in others.items())
+        got = int(np.sum([s[k] for k in ks]))
+        print(f"  {name:9s} SM²ITH {got:3d}/{len(ks)}  {by}")
 
 
 if __name__ == "__main__":

@@ -12,12 +12,10 @@ seeds 10–29 were run here:
     python docs/experiments/doorway-30-2026-11-28/doorway30.py
 """
 
+import runpy
 from pathlib import Path
 
-import numpy as np
-
 from sm2ith_drake.experiments.campaign import ReadRows
-from sm2ith_drake.experiments.statistics import PairedDifference
 
 HERE = Path(__file__).resolve().parent
 SOURCES = {
@@ -27,7 +25,6 @@ SOURCES = {
         True,
     ),
 }
-COUNTS = (1, 2, 3, 5)
 METHODS = ("SM2ITH", "CVMM", "React")
 
 
@@ -40,11 +37,6 @@ def Outcomes(rows, method, variant, key):
         if (r["robot"], r["people"], r["method"], r["variant"])
         == ("stretch3", "instructed", method, variant)
     }
-
-
-def _Cell(sm2ith, other, keys):
-    e = PairedDifference([sm2ith[k] for k in keys], [other[k] for k in keys])
-    return f"{e.value:+.2f} [{e.low:+.2f}, {e.high:+.2f}]"
 
 
 def _Contacts(rows, variant):
@@ -69,28 +61,15 @@ def _Contacts(rows, variant):
 
 
 def main():
+    # The 2026-11-27 check's script (its PrintPaired).
+    earlier = runpy.run_path(str(HERE.parent / "auto-rerun" / "doorway30.py"))
     for label, (path, baselines_from_safe) in SOURCES.items():
         rows = ReadRows(path)
         for variant in ("safe", "paper"):
             base = "safe" if baselines_from_safe else variant
             s = Outcomes(rows, "SM2ITH", variant, "success")
             others = {m: Outcomes(rows, m, base, "success") for m in METHODS[1:]}
-            keys = sorted(set(s).intersection(*others.values()))
-            totals = " / ".join(
-                f"{m} {int(sum(d[k] for k in keys))} ("
-                + "/".join(
-                    str(int(sum(d[k] for k in keys if k[0] == c))) for c in COUNTS
-                )
-                + ")"
-                for m, d in (("SM²ITH", s), *others.items())
-            )
-            print(f"\n{label}, {variant}: {len(keys)} paired runs; arrivals {totals}")
-            for count in (None, *COUNTS):
-                ks = [k for k in keys if count is None or k[0] == count]
-                name = "pooled" if count is None else f"{count} people"
-                by = "  ".join(f"− {m} {_Cell(s, d, ks)}" for m, d in others.items())
-                got = int(np.sum([s[k] for k in ks]))
-                print(f"  {name:9s} SM²ITH {got:3d}/{len(ks)}  {by}")
+            earlier["PrintPaired"](f"{label}, {variant}", s, others)
             if not baselines_from_safe:
                 print(f"  runs with contact: {_Contacts(rows, variant)}")
 

@@ -10,6 +10,7 @@ RUN_ID: a row of this directory's doorway.csv, e.g.
 doorway_stretch3_2h/safe/instructed/SM2ITH/seed6.
 """
 
+import runpy
 import sys
 from pathlib import Path
 
@@ -19,8 +20,6 @@ from sm2ith_drake.control import mpc_controller
 from sm2ith_drake.experiments.campaign import ReadRows
 from sm2ith_drake.experiments.runs import LoadRunScenario, SpecFromRow
 from sm2ith_drake.experiments.studies import STUDIES
-from sm2ith_drake.run.metrics import HumanDistances
-from sm2ith_drake.run.simulation import RunSimulation
 
 HERE = Path(__file__).parent
 
@@ -52,15 +51,9 @@ def main(run_id, t0, t1):
         return new
 
     mpc_controller.MpcController.Step = Step
-    result = RunSimulation(scenario, stop_when_done=True)
-    log = result.log
-    robot = result.diagram.GetSubsystemByName("controller").controller.robot
-    t = np.asarray(log.times)
-    x = np.asarray(log.states)
-    P = np.asarray(log.human_positions)
-    V = np.asarray(log.human_velocities)
-    radii = np.array([h.radius for h in scenario.humans])
-    gap = HumanDistances(robot, x, P) - radii[None]
+    # The final re-run's trace.py (its Resimulate and PeopleText).
+    trace = runpy.run_path(str(HERE.parent / "final-2026-11-28" / "trace.py"))
+    robot, t, x, P, V, _, gap = trace["Resimulate"](scenario)
     nq = robot.num_positions
     print(
         f"{run_id}: success {row['success']}, freezing {row['freezing_time']:.1f} s, "
@@ -71,11 +64,7 @@ def main(run_id, t0, t1):
         i = int(np.argmin(np.abs(t - time_now)))
         base = x[i, :3]
         speed = np.linalg.norm(x[i, nq : nq + 2])
-        people = "  ".join(
-            f"p{j} ({P[i, j, 0]:+.2f},{P[i, j, 1]:+.2f}) gap {gap[i, j]:+.2f} "
-            f"v {np.linalg.norm(V[i, j]):.2f}"
-            for j in range(P.shape[1])
-        )
+        people = trace["PeopleText"](P[i], V[i], gap[i], 2)
         print(
             f"{time_now:6.2f} {mode:7s} ({base[0]:+.2f},{base[1]:+.2f},{base[2]:+.2f}) "
             f"{speed:.2f}  {moves:.2f} m  {str(guarded):8s} {people}"

@@ -26,6 +26,32 @@ from sm2ith_drake.run.simulation import RunSimulation
 HERE = Path(__file__).parent
 
 
+def Resimulate(scenario):
+    """Runs ``scenario``; returns the robot, the logged times t, states x,
+    people's positions P and velocities V, and each person's distance to
+    the robot's surface and gap to it (surface to surface; < 0: contact)."""
+    result = RunSimulation(scenario, stop_when_done=True)
+    log = result.log
+    robot = result.diagram.GetSubsystemByName("controller").controller.robot
+    t = np.asarray(log.times)
+    x = np.asarray(log.states)
+    P = np.asarray(log.human_positions)
+    V = np.asarray(log.human_velocities)
+    radii = np.array([h.radius for h in scenario.humans])
+    dist = HumanDistances(robot, x, P)
+    return robot, t, x, P, V, dist, dist - radii[None]
+
+
+def PeopleText(P, V, gap, digits):
+    """Each person's position, gap (``digits`` decimals) and speed at one
+    instant: P, V (H, 2), gap (H,)."""
+    return "  ".join(
+        f"p{j} ({P[j, 0]:+.2f},{P[j, 1]:+.2f}) gap {gap[j]:+.{digits}f} "
+        f"v {np.linalg.norm(V[j]):.2f}"
+        for j in range(len(P))
+    )
+
+
 def main(run_id, window):
     study = next(name for name in STUDIES if run_id.startswith(name))
     row = next(r for r in ReadRows(HERE / f"{study}.csv") if r["run_id"] == run_id)
@@ -41,16 +67,7 @@ def main(run_id, window):
         return new
 
     mpc_controller.MpcController.Step = Step
-    result = RunSimulation(scenario, stop_when_done=True)
-    log = result.log
-    robot = result.diagram.GetSubsystemByName("controller").controller.robot
-    t = np.asarray(log.times)
-    x = np.asarray(log.states)
-    P = np.asarray(log.human_positions)
-    V = np.asarray(log.human_velocities)
-    radii = np.array([h.radius for h in scenario.humans])
-    dist = HumanDistances(robot, x, P)
-    gap = dist - radii[None]
+    robot, t, x, P, V, dist, gap = Resimulate(scenario)
     closing = RobotClosingContacts(robot, x, P, gap, dist)
     k = int(np.argmin(gap.min(axis=1)))
     print(f"{run_id}: success {row['success']}, min gap {gap.min():+.3f} m", end="")
@@ -59,11 +76,7 @@ def main(run_id, window):
     for i in np.nonzero(np.abs(t - t[k]) <= window)[0][::2]:
         base = x[i, :3]
         speed = np.linalg.norm(x[i, nq : nq + 2]) if x.shape[1] > nq + 1 else np.nan
-        people = "  ".join(
-            f"p{j} ({P[i, j, 0]:+.2f},{P[i, j, 1]:+.2f}) gap {gap[i, j]:+.3f} "
-            f"v {np.linalg.norm(V[i, j]):.2f}"
-            for j in range(P.shape[1])
-        )
+        people = PeopleText(P[i], V[i], gap[i], 3)
         print(
             f"{t[i]:6.2f} base ({base[0]:+.2f},{base[1]:+.2f},{base[2]:+.2f}) "
             f"|nu| {speed:.2f} {'CLOSING' if closing[i] else '       '} {people}"
