@@ -197,10 +197,7 @@ class KktBlocks:
             return self._cache
         pred, layout = self.pred, self.layout
         z = point.z
-        N = pred.kkt_steps
-        p = z[pred.p[:N]]
-        v = pred.HumanVelocities(z)[:N]
-        robot = pred.RobotViewOf(z, layout, point.kin, steps=N)
+        p, v, robot = pred.LocalState(z, layout, point.kin)
         planes, derivatives, body = pred.HalfPlaneDerivatives(p, v, robot)
         n, rho, no, rho_o = planes
         stat, c, lc = KktTerms(pred, z, v, n, rho, no, rho_o)

@@ -194,19 +194,20 @@ class OrcaKkt(Predictor):
         """OrcaModel.HalfPlaneDerivatives with this step's neighbour sets."""
         return self.model.HalfPlaneDerivatives(p, v, robot, self.neighbors, h)
 
-    def LocalState(self, z, layout):
+    def LocalState(self, z, layout, kin=None):
         """The states the k-th QPs depend on, k = 0 … T−1 (T =
         kkt_steps): human positions and velocities (T, H, 2) and the
-        RobotView."""
+        RobotView (``kin``: see OrcaModel.RobotView)."""
         T = self.kkt_steps
         p = z[self.p[:T]]
         v = self.HumanVelocities(z)[:T]
-        return p, v, self.RobotViewOf(z, layout, steps=T)
+        return p, v, self.RobotViewOf(z, layout, kin, steps=T)
 
     def Residuals(self, z, layout):
-        """KKT residuals at z (for diagnostics and tests): stationarity (N,
-        H, 2), primal c (N, H, R) and complementarity λ·c (N, H, R), with the
-        slacks eliminated (ζ = λ/2M, module doc)."""
+        """KKT residuals at z (for diagnostics and tests) over the T =
+        kkt_steps steps: stationarity (T, H, 2), primal c (T, H, R) and
+        complementarity λ·c (T, H, R), with the slacks eliminated (ζ = λ/2M,
+        module doc)."""
         p, v, robot = self.LocalState(z, layout)
         n, rho, no, rho_o = self.HalfPlanes(p, v, robot)
         return KktTerms(self, z, v, n, rho, no, rho_o)
