@@ -1,0 +1,73 @@
+"""One head-on run (adversarial.csv of this directory) re-simulated and
+printed control step by control step: the base's pose and speed, how far
+the planned base gets toward its goal over the horizon (+: closer), the
+person's position, gap (robot surface to person surface) and speed, and
+where the plan predicts the person at the horizon's end.
+
+    python docs/experiments/seeds-30-2026-11-28/headon_trace.py RUN_ID [T0 T1]
+
+RUN_ID e.g. headon_stretch3/paper/social_force/SM2ITH/seed28.
+"""
+
+import runpy
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from sm2ith_drake.control import mpc_controller
+from sm2ith_drake.experiments.campaign import ReadRows
+from sm2ith_drake.experiments.runs import LoadRunScenario, SpecFromRow
+from sm2ith_drake.experiments.studies import STUDIES
+
+HERE = Path(__file__).parent
+
+
+def main(run_id, t0, t1):
+    row = next(r for r in ReadRows(HERE / "adversarial.csv") if r["run_id"] == run_id)
+    scenario = LoadRunScenario(SpecFromRow(STUDIES["adversarial"], row))
+    goal = np.asarray(
+        next(t.target for t in scenario.tasks if t.kind == "base_position"), float
+    )
+    steps = []
+    step = mpc_controller.MpcController.Step
+
+    def Step(self, state, **kwargs):
+        new = step(self, state, **kwargs)
+        solution = new.last_solution
+        if t0 <= kwargs["time_now"] <= t1 and solution is not None:
+            base = solution.q[:, :2]
+            gain = np.linalg.norm(base[0] - goal) - np.linalg.norm(base[-1] - goal)
+            end = None
+            if solution.human_predictions is not None:
+                end = solution.human_predictions[-1, 0]
+            steps.append((kwargs["time_now"], new.record.mode, gain, end))
+        return new
+
+    mpc_controller.MpcController.Step = Step
+    # The final re-run's trace.py (its Resimulate and PeopleText).
+    trace = runpy.run_path(str(HERE.parent / "final-2026-11-28" / "trace.py"))
+    robot, t, x, P, V, _, gap = trace["Resimulate"](scenario)
+    nq = robot.num_positions
+    print(
+        f"{run_id}: success {row['success']}, progress share "
+        f"{row['progress_share']:.3f}, min gap {gap.min():+.3f} m, goal {goal}"
+    )
+    print(
+        "  t     mode    base (x, y, θ)       |ν_xy| plan gain  predicted end  people"
+    )
+    for time_now, mode, gain, end in steps:
+        i = int(np.argmin(np.abs(t - time_now)))
+        base = x[i, :3]
+        speed = np.linalg.norm(x[i, nq : nq + 2])
+        people = trace["PeopleText"](P[i], V[i], gap[i], 2)
+        where = "-" if end is None else f"({end[0]:+.2f},{end[1]:+.2f})"
+        print(
+            f"{time_now:6.2f} {mode:7s} ({base[0]:+.2f},{base[1]:+.2f},{base[2]:+.2f}) "
+            f"{speed:.2f}  {gain:+.2f} m  {where:14s} {people}"
+        )
+
+
+if __name__ == "__main__":
+    window = (float(sys.argv[2]), float(sys.argv[3])) if len(sys.argv) > 3 else (0, 1e9)
+    main(sys.argv[1], *window)
