@@ -1,12 +1,13 @@
-"""SM²ITH with the stall recovery (`controller.recovery.enabled: true`,
-headon-recovery/adversarial.csv) against SM²ITH and CVMM with the defaults
-(adversarial.csv), on the head-on cell's 30 seeds: arrivals, time to goal,
-the (d) metrics and contact, paired by seed within each people model and
-variant.
+"""SM²ITH with the stall recovery (`controller.recovery.enabled: true`;
+DIRECTORY/adversarial.csv, default headon-recovery) against SM²ITH and
+CVMM with the defaults (adversarial.csv), on the head-on cell's 30
+seeds: arrivals, time to goal, the (d) metrics and contact, paired by seed
+within each people model and variant.
 
-python docs/experiments/seeds-30-2026-11-28/headon_recovery.py
+python docs/experiments/seeds-30-2026-11-28/headon_recovery.py [DIRECTORY]
 """
 
+import sys
 from pathlib import Path
 
 from sm2ith_drake.experiments.campaign import ReadRows
@@ -23,9 +24,9 @@ def _HeadOn(path):
     ]
 
 
-def main():
+def main(directory):
     default = _HeadOn(HERE / "adversarial.csv")
-    lever = _HeadOn(HERE / "headon-recovery" / "adversarial.csv")
+    lever = _HeadOn(HERE / directory / "adversarial.csv")
     for r in lever:
         r["method"] = "SM2ITH+recovery"
     print("mean over 30 seeds; differences paired by seed: mean [95 % CI]\n")
@@ -60,4 +61,4 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    main(sys.argv[1] if len(sys.argv) > 1 else "headon-recovery")
