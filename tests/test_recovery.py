@@ -200,3 +200,26 @@ def test_a_base_task_below_another_task_is_never_recovered():
     controller = _Controller(scenario=_Scenario(enabled=True, extra=text))
     state, records = _StepUntil(controller, CORNER, None, 5.0)
     assert state.recovery.routes == 0 and all(b is None for b, _ in records)
+
+
+def test_a_stall_short_of_the_phase_tolerance_is_recovered():
+    """A base 0.27 m ahead of its target, inside the recovery's goal_tolerance
+    (0.3 m) but outside its phase's (0.25 m), is not at its goal: with the
+    phase's tolerance handed over (the planner's TaskReferences, as the
+    diagram does) it gets a route; without it, none (the head-on's stalls
+    0.25-0.30 m short, docs/experiments/seeds-30-2026-11-28)."""
+    scenario = _Scenario(enabled=True)
+    diagram = MakeSimulation(scenario=scenario)
+    planner = diagram.GetSubsystemByName("planner")
+    context = planner.CreateDefaultContext()
+    port = planner.get_input_port(0)
+    port.FixValue(context, np.zeros(port.size()))
+    references = planner.GetOutputPort("task_references").Eval(context)
+    assert references.done_tolerances == {"base_position": 0.25}
+    controller = _Controller(scenario=scenario)
+    # Facing away from the target (x), which is behind the base.
+    ahead = [0.27, 1.5, 0.0, 0.58, 0.06, 0.0, 0.0]
+    for tolerances, expected in ((None, 0), (references.done_tolerances, 1)):
+        controller.recovery.SetPhaseTolerances(tolerances)
+        state, _ = _StepUntil(controller, ahead, None, 5.0)
+        assert state.recovery.routes == expected

@@ -31,8 +31,7 @@ from sm2ith_drake.humans.messages import HumanPrediction, MpcPlan
 from sm2ith_drake.humans.robot_view import HumanDistances
 from sm2ith_drake.scenario import ControllerConfig, ControlPeriod, SafetyConfig
 
-# A replayed plan is consistent while the measured ν is this close (per
-# component) to the ν the plan predicted for now.
+# A replayed plan is consistent while ν is this close to its ν (per entry).
 _PLAN_CONSISTENCY_TOL = 0.05
 
 
@@ -272,12 +271,14 @@ class MpcController:
         nu0,
         targets: dict,
         prediction: HumanPrediction | None = None,
+        done_tolerances: dict | None = None,
     ) -> ControllerState:
         """Computes the next command; returns the new state (input unchanged).
 
         ``prediction`` is the HumanPredictor's output for this step (ignored
         without a predictor; None: nobody tracked). The prediction's own
-        compute time counts as part of the step (record and time budget)."""
+        compute time counts as part of the step (record and time budget).
+        ``done_tolerances``: TaskReferences.done_tolerances (the recovery's)."""
         start = time.perf_counter()
         q0 = np.asarray(q0, dtype=float)
         nu0 = np.asarray(nu0, dtype=float)
@@ -292,6 +293,7 @@ class MpcController:
             self.predictor.SetPrediction(prediction)
             humans = prediction.estimate
             start -= prediction.compute_time
+        self.recovery.SetPhaseTolerances(done_tolerances)
         u = self._Recover(new, state, time_now, q0, nu0, targets, humans)
         if u is not None:
             record.mode = record.status = "recovery"

@@ -138,6 +138,15 @@ class Recovery:
         )
         self._base = first.name if base else None
         self._holonomic = NumBaseVelocities(robot) == 3
+        self._goal_tolerance = config.goal_tolerance
+
+    def SetPhaseTolerances(self, done_tolerances: dict | None) -> None:
+        """Takes this control step's phase tolerances by task (the task
+        sequence's; None or {}: none). A base short of its target by more
+        than its phase's tolerance is not at its goal, even within
+        ``goal_tolerance``: the recovery then aims at the phase's."""
+        phase = (done_tolerances or {}).get(self._base, np.inf)
+        self._goal_tolerance = min(self.config.goal_tolerance, float(phase))
 
     def InitialState(self) -> RecoveryState:
         return RecoveryState()
@@ -202,7 +211,7 @@ class Recovery:
         )
         if not stalled or someone_moving:
             return new, None
-        if np.linalg.norm(target - q0[:2]) <= cfg.goal_tolerance:
+        if np.linalg.norm(target - q0[:2]) <= self._goal_tolerance:
             return new, None
         new.history = new.history[-1:]  # the next try after another stall
         keep = np.linalg.norm(people_p - q0[:2], axis=1) <= DISC_RANGE
@@ -242,7 +251,7 @@ class Recovery:
                     self.walls,
                     np.asarray(q0, dtype=float)[:NUM_BASE_POSITIONS],
                     goal,
-                    goal_tolerance=tolerance or self.config.goal_tolerance,
+                    goal_tolerance=tolerance or self._goal_tolerance,
                     clearance=clearance,
                     discs=discs,
                     holonomic=self._holonomic,

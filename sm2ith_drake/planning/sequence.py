@@ -18,6 +18,9 @@ class TaskReferences:
     phase: str = ""
     # True once the last phase of a sequence has been completed.
     finished: bool = False
+    # The current phase's tolerance, by each task that decides when it is
+    # done (its done_when; empty without a sequence).
+    done_tolerances: dict = field(default_factory=dict)
 
 
 @dataclass

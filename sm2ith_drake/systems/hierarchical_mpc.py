@@ -103,6 +103,7 @@ class HierarchicalMpc(LeafSystem):
             q0=x[: self._n],
             nu0=x[self._n :],
             targets=refs.targets,
+            done_tolerances=refs.done_tolerances,
             prediction=None
             if self._prediction is None
             else self._prediction.Eval(context),

@@ -81,11 +81,17 @@ class TaskPlanner(LeafSystem):
         seq = context.get_abstract_state(self._state).get_value()
         count = len(self._sequence)
         index = min(seq.phase_index, count - 1) if count else 0
+        done = {}
+        if count:
+            phase = self._sequence[index]
+            names = phase.done_when or list(phase.targets)
+            done = {name: phase.tolerance for name in names}
         output.set_value(
             TaskReferences(
                 targets=self._Targets(index) if count else dict(self._base),
                 phase_index=seq.phase_index,
                 phase=self._sequence[index].name if count else "",
                 finished=bool(count) and seq.phase_index >= count,
+                done_tolerances=done,
             )
         )
