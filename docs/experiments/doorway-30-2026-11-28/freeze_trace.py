@@ -51,7 +51,7 @@ def main(run_id, t0, t1):
         return new
 
     mpc_controller.MpcController.Step = Step
-    # The final re-run's trace.py (its Resimulate and PeopleText).
+    # The final re-run's trace.py (its Resimulate and StepText).
     trace = runpy.run_path(str(HERE.parent / "final-2026-11-28" / "trace.py"))
     robot, t, x, P, V, _, gap = trace["Resimulate"](scenario)
     nq = robot.num_positions
@@ -61,14 +61,8 @@ def main(run_id, t0, t1):
     )
     print("  t     mode    base (x, y, θ)       |ν_xy| plan moves  guarded  people")
     for time_now, mode, moves, guarded in steps:
-        i = int(np.argmin(np.abs(t - time_now)))
-        base = x[i, :3]
-        speed = np.linalg.norm(x[i, nq : nq + 2])
-        people = trace["PeopleText"](P[i], V[i], gap[i], 2)
-        print(
-            f"{time_now:6.2f} {mode:7s} ({base[0]:+.2f},{base[1]:+.2f},{base[2]:+.2f}) "
-            f"{speed:.2f}  {moves:.2f} m  {str(guarded):8s} {people}"
-        )
+        head, people = trace["StepText"](t, x, P, V, gap, nq, time_now, mode)
+        print(f"{head}  {moves:.2f} m  {str(guarded):8s} {people}")
 
 
 if __name__ == "__main__":

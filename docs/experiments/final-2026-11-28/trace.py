@@ -52,6 +52,20 @@ def PeopleText(P, V, gap, digits):
     )
 
 
+def StepText(t, x, P, V, gap, nq, time_now, mode):
+    """A control step's line in the traces of the later checks: the time,
+    the step's mode, the base's pose and |ν_xy| at the logged sample
+    nearest ``time_now`` (before what the check adds), and the people."""
+    i = int(np.argmin(np.abs(t - time_now)))
+    base = x[i, :3]
+    speed = np.linalg.norm(x[i, nq : nq + 2])
+    head = (
+        f"{time_now:6.2f} {mode:7s} ({base[0]:+.2f},{base[1]:+.2f},{base[2]:+.2f}) "
+        f"{speed:.2f}"
+    )
+    return head, PeopleText(P[i], V[i], gap[i], 2)
+
+
 def main(run_id, window):
     study = next(name for name in STUDIES if run_id.startswith(name))
     row = next(r for r in ReadRows(HERE / f"{study}.csv") if r["run_id"] == run_id)

@@ -45,7 +45,7 @@ def main(run_id, t0, t1):
         return new
 
     mpc_controller.MpcController.Step = Step
-    # The final re-run's trace.py (its Resimulate and PeopleText).
+    # The final re-run's trace.py (its Resimulate and StepText).
     trace = runpy.run_path(str(HERE.parent / "final-2026-11-28" / "trace.py"))
     robot, t, x, P, V, _, gap = trace["Resimulate"](scenario)
     nq = robot.num_positions
@@ -57,15 +57,9 @@ def main(run_id, t0, t1):
         "  t     mode    base (x, y, θ)       |ν_xy| plan gain  predicted end  people"
     )
     for time_now, mode, gain, end in steps:
-        i = int(np.argmin(np.abs(t - time_now)))
-        base = x[i, :3]
-        speed = np.linalg.norm(x[i, nq : nq + 2])
-        people = trace["PeopleText"](P[i], V[i], gap[i], 2)
+        head, people = trace["StepText"](t, x, P, V, gap, nq, time_now, mode)
         where = "-" if end is None else f"({end[0]:+.2f},{end[1]:+.2f})"
-        print(
-            f"{time_now:6.2f} {mode:7s} ({base[0]:+.2f},{base[1]:+.2f},{base[2]:+.2f}) "
-            f"{speed:.2f}  {gain:+.2f} m  {where:14s} {people}"
-        )
+        print(f"{head}  {gain:+.2f} m  {where:14s} {people}")
 
 
 if __name__ == "__main__":
