@@ -16,22 +16,15 @@ from pathlib import Path
 
 import numpy as np
 
-from sm2ith_drake.control import mpc_controller
-from sm2ith_drake.experiments.campaign import ReadRows
-from sm2ith_drake.experiments.runs import LoadRunScenario, SpecFromRow
-from sm2ith_drake.experiments.studies import STUDIES
-
 HERE = Path(__file__).parent
+# The final re-run's trace.py (its ResimulateRun and StepText).
+TRACE = HERE.parent / "final-2026-11-28" / "trace.py"
 
 
 def main(run_id, t0, t1):
-    row = next(r for r in ReadRows(HERE / "doorway.csv") if r["run_id"] == run_id)
-    scenario = LoadRunScenario(SpecFromRow(STUDIES["doorway"], row))
     steps = []
-    step = mpc_controller.MpcController.Step
 
-    def Step(self, state, **kwargs):
-        new = step(self, state, **kwargs)
+    def Record(new, kwargs):
         prediction = kwargs.get("prediction")
         solution = new.last_solution
         if t0 <= kwargs["time_now"] <= t1 and solution is not None:
@@ -40,20 +33,13 @@ def main(run_id, t0, t1):
                 ids = np.asarray(prediction.slot_ids)
                 guarded = ids[np.asarray(prediction.guarded, dtype=bool)].tolist()
             base = solution.q[:, :2]
-            steps.append(
-                (
-                    kwargs["time_now"],
-                    new.record.mode,
-                    np.linalg.norm(base[-1] - base[0]),
-                    guarded,
-                )
-            )
-        return new
+            moves = np.linalg.norm(base[-1] - base[0])
+            steps.append((kwargs["time_now"], new.record.mode, moves, guarded))
 
-    mpc_controller.MpcController.Step = Step
-    # The final re-run's trace.py (its Resimulate and StepText).
-    trace = runpy.run_path(str(HERE.parent / "final-2026-11-28" / "trace.py"))
-    robot, t, x, P, V, _, gap = trace["Resimulate"](scenario)
+    trace = runpy.run_path(str(TRACE))
+    row, _, robot, t, x, P, V, gap = trace["ResimulateRun"](
+        HERE / "doorway.csv", "doorway", run_id, Record
+    )
     nq = robot.num_positions
     print(
         f"{run_id}: success {row['success']}, freezing {row['freezing_time']:.1f} s, "

@@ -52,6 +52,29 @@ def PeopleText(P, V, gap, digits):
     )
 
 
+def ResimulateRun(csv_path, study, run_id, record):
+    """Re-simulates the run ``run_id`` of the campaign CSV ``csv_path`` (of
+    ``study``), calling ``record(new, kwargs)`` after every control step
+    with the controller's new state and the step's keyword arguments.
+    Returns the CSV row, the scenario, and Resimulate's robot, t, x, P, V
+    and gap."""
+    row = next(r for r in ReadRows(csv_path) if r["run_id"] == run_id)
+    scenario = LoadRunScenario(SpecFromRow(STUDIES[study], row))
+    step = mpc_controller.MpcController.Step
+
+    def Step(self, state, **kwargs):
+        new = step(self, state, **kwargs)
+        record(new, kwargs)
+        return new
+
+    mpc_controller.MpcController.Step = Step
+    try:
+        robot, t, x, P, V, _, gap = Resimulate(scenario)
+    finally:
+        mpc_controller.MpcController.Step = step
+    return row, scenario, robot, t, x, P, V, gap
+
+
 def StepText(t, x, P, V, gap, nq, time_now, mode):
     """A control step's line in the traces of the later checks: the time,
     the step's mode, the base's pose and |ν_xy| at the logged sample

@@ -15,43 +15,35 @@ from pathlib import Path
 
 import numpy as np
 
-from sm2ith_drake.control import mpc_controller
-from sm2ith_drake.experiments.campaign import ReadRows
-from sm2ith_drake.experiments.runs import LoadRunScenario, SpecFromRow
-from sm2ith_drake.experiments.studies import STUDIES
-
 HERE = Path(__file__).parent
+# The final re-run's trace.py (its ResimulateRun and StepText).
+TRACE = HERE.parent / "final-2026-11-28" / "trace.py"
 
 
 def main(run_id, t0, t1):
-    row = next(r for r in ReadRows(HERE / "adversarial.csv") if r["run_id"] == run_id)
-    scenario = LoadRunScenario(SpecFromRow(STUDIES["adversarial"], row))
-    goal = np.asarray(
-        next(t.target for t in scenario.tasks if t.kind == "base_position"), float
-    )
-    steps = []
-    step = mpc_controller.MpcController.Step
+    steps, goal = [], []
 
-    def Step(self, state, **kwargs):
-        new = step(self, state, **kwargs)
+    def Record(new, kwargs):
         solution = new.last_solution
         if t0 <= kwargs["time_now"] <= t1 and solution is not None:
             base = solution.q[:, :2]
-            gain = np.linalg.norm(base[0] - goal) - np.linalg.norm(base[-1] - goal)
+            target = kwargs["targets"]["base_position"]
+            gain = np.linalg.norm(base[0] - target) - np.linalg.norm(base[-1] - target)
             end = None
             if solution.human_predictions is not None:
                 end = solution.human_predictions[-1, 0]
             steps.append((kwargs["time_now"], new.record.mode, gain, end))
-        return new
+            goal[:] = target
 
-    mpc_controller.MpcController.Step = Step
-    # The final re-run's trace.py (its Resimulate and StepText).
-    trace = runpy.run_path(str(HERE.parent / "final-2026-11-28" / "trace.py"))
-    robot, t, x, P, V, _, gap = trace["Resimulate"](scenario)
+    trace = runpy.run_path(str(TRACE))
+    row, _, robot, t, x, P, V, gap = trace["ResimulateRun"](
+        HERE / "adversarial.csv", "adversarial", run_id, Record
+    )
     nq = robot.num_positions
     print(
         f"{run_id}: success {row['success']}, progress share "
-        f"{row['progress_share']:.3f}, min gap {gap.min():+.3f} m, goal {goal}"
+        f"{row['progress_share']:.3f}, min gap {gap.min():+.3f} m, "
+        f"goal {np.asarray(goal)}"
     )
     print(
         "  t     mode    base (x, y, θ)       |ν_xy| plan gain  predicted end  people"
