@@ -64,7 +64,7 @@ class TaskPlanner(LeafSystem):
         x = self._x.Eval(context)
         q = np.asarray(x[: self._n])[None, :]
         kin = self._robot.CalcKinematics(q)
-        names = phase.done_when or list(phase.targets)
+        names = _DoneTasks(phase)
         inside = True
         for name in names:
             e, _ = self._tasks[name].CalcErrorAndJacobian(q, kin, targets[name])
@@ -81,17 +81,20 @@ class TaskPlanner(LeafSystem):
         seq = context.get_abstract_state(self._state).get_value()
         count = len(self._sequence)
         index = min(seq.phase_index, count - 1) if count else 0
-        done = {}
-        if count:
-            phase = self._sequence[index]
-            names = phase.done_when or list(phase.targets)
-            done = {name: phase.tolerance for name in names}
+        phase = self._sequence[index] if count else None
+        done = {n: phase.tolerance for n in _DoneTasks(phase)} if count else {}
         output.set_value(
             TaskReferences(
                 targets=self._Targets(index) if count else dict(self._base),
                 phase_index=seq.phase_index,
-                phase=self._sequence[index].name if count else "",
+                phase=phase.name if count else "",
                 finished=bool(count) and seq.phase_index >= count,
                 done_tolerances=done,
             )
         )
+
+
+def _DoneTasks(phase) -> list:
+    """The tasks whose errors decide when ``phase`` is done: its done_when,
+    else every task it sets a target for."""
+    return phase.done_when or list(phase.targets)

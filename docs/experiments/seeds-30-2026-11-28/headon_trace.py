@@ -21,7 +21,7 @@ TRACE = HERE.parent / "final-2026-11-28" / "trace.py"
 
 
 def main(run_id, t0, t1):
-    steps, goal = [], []
+    steps = []
 
     def Record(new, kwargs):
         solution = new.last_solution
@@ -33,17 +33,17 @@ def main(run_id, t0, t1):
             if solution.human_predictions is not None:
                 end = solution.human_predictions[-1, 0]
             steps.append((kwargs["time_now"], new.record.mode, gain, end))
-            goal[:] = target
 
     trace = runpy.run_path(str(TRACE))
-    row, _, robot, t, x, P, V, gap = trace["ResimulateRun"](
+    row, scenario, robot, t, x, P, V, gap = trace["ResimulateRun"](
         HERE / "adversarial.csv", "adversarial", run_id, Record
     )
     nq = robot.num_positions
+    goal = next(t.target for t in scenario.tasks if t.kind == "base_position")
     print(
         f"{run_id}: success {row['success']}, progress share "
         f"{row['progress_share']:.3f}, min gap {gap.min():+.3f} m, "
-        f"goal {np.asarray(goal)}"
+        f"goal {np.asarray(goal, dtype=float)}"
     )
     print(
         "  t     mode    base (x, y, θ)       |ν_xy| plan gain  predicted end  people"

@@ -11,10 +11,10 @@ from pathlib import Path
 
 from sm2ith_drake.experiments.campaign import ReadRows
 from sm2ith_drake.experiments.findings import Difference, FindingRows, Select
+from sm2ith_drake.experiments.statistics import NOT_DISTINGUISHABLE
 from sm2ith_drake.experiments.studies import STUDIES
 
 HERE = Path(__file__).resolve().parent
-SHORT = {"holds": "holds", "does not hold": "does not hold"}
 
 
 def _Text(entry) -> str:
@@ -22,7 +22,9 @@ def _Text(entry) -> str:
         f"{d.value:+.3g} [{d.low:+.3g}, {d.high:+.3g}] n={d.n}"
         for _, d in entry["comparisons"]
     )
-    verdict = SHORT.get(entry["verdict"], "n.d.")
+    verdict = entry["verdict"]
+    if verdict == NOT_DISTINGUISHABLE:
+        verdict = "n.d."
     return f"{verdict} ({diffs})"
 
 
