@@ -1,15 +1,46 @@
-import sys, numpy as np
+"""A 200-step bench's control steps split by SQP passes: the median and
+p99 of all steps, of the one-pass and of the two-pass steps, with their
+QP iterations, and the slowest steps.
+
+    python steps.py ROBOT PEOPLE [SCENARIO_TEXT]
+
+Run from outside the checkout with PYTHONPATH set to the code to measure.
+"""
+
+import sys
+
+import numpy as np
+
 from sm2ith_drake.run.bench import BenchmarkScenario, _Simulate
-robot = sys.argv[1]; H = int(sys.argv[2]); text = sys.argv[3] if len(sys.argv) > 3 else ""
-sc = BenchmarkScenario(robot, H, "orca_kkt", "rti", None, text)
-log, setup, inst = _Simulate(sc, 200)
-recs = [r for r in log.records if r.mode != "none"][:200]
-w = np.array([r.wall_time for r in recs]) * 1e3
-p = np.array([r.passes for r in recs]); it = np.array([r.iterations for r in recs])
-print(robot, "median %.1f p95 %.1f p99 %.1f max %.1f" % (np.median(w), *np.percentile(w, [95, 99]), w.max()))
-for npass in (1, 2):
-    m = p == npass
-    if m.any(): print(" passes", npass, "n", m.sum(), "median ms %.1f" % np.median(w[m]), "p90 %.1f" % np.percentile(w[m], 90), "iters med", np.median(it[m]))
-o = np.argsort(w)[::-1][:12]
-for i in o: print("  step", i, "%.1f ms" % w[i], "passes", p[i], "iters", it[i], recs[i].status)
-print("corr iters-wall", np.corrcoef(it, w)[0,1])
+
+
+def main(robot, people, text=""):
+    scenario = BenchmarkScenario(robot, people, "orca_kkt", "rti", None, text)
+    log, _, _ = _Simulate(scenario, 200)
+    records = [r for r in log.records if r.mode != "none"][:200]
+    wall = np.array([r.wall_time for r in records]) * 1e3
+    passes = np.array([r.passes for r in records])
+    iterations = np.array([r.iterations for r in records])
+    p95, p99 = np.percentile(wall, [95, 99])
+    print(
+        f"{robot} median {np.median(wall):.1f} p95 {p95:.1f} p99 {p99:.1f} "
+        f"max {wall.max():.1f}"
+    )
+    for count in (1, 2):
+        m = passes == count
+        if m.any():
+            print(
+                f" passes {count}: {m.sum()} steps, "
+                f"median {np.median(wall[m]):.1f} ms, "
+                f"p90 {np.percentile(wall[m], 90):.1f} ms, "
+                f"median iterations {np.median(iterations[m])}"
+            )
+    for i in np.argsort(wall)[::-1][:12]:
+        print(
+            f"  step {i} {wall[i]:.1f} ms, passes {passes[i]}, "
+            f"iterations {iterations[i]}, {records[i].status}"
+        )
+
+
+if __name__ == "__main__":
+    main(sys.argv[1], int(sys.argv[2]), *sys.argv[3:])
