@@ -4,8 +4,10 @@ it, in the Stretch 3 doorway with instructed people (this directory's
 then, at the first instant a person who started beyond the door (y > 0)
 is within ``REACH`` of the robot's surface, the base's y (the door is at
 y = 0, the robot starts at −1.5), whether the base is then in the door's
-mouth (y > ``MOUTH``), and the run's outcome. Paired over the same seeds
-for SM²ITH, CVMM and React.
+mouth (y > ``MOUTH``), and the run's outcome; and over the ``AFTER``
+seconds that follow, how far the base gets toward the goal (Δy) and how
+much it turns (|Δθ|). Paired over the same seeds for SM²ITH, CVMM and
+React.
 
     python docs/experiments/doorway-30-2026-11-28/door_entry.py [COUNT]
 
@@ -32,17 +34,30 @@ METHODS = ("SM2ITH", "CVMM", "React")
 REACH = 1.0 - 0.3
 # The base is in the door's mouth beyond this y (m).
 MOUTH = -0.45
+# The window after the person comes within reach (s).
+AFTER = 2.0
 
 
 def Entry(row):
-    """(run_id, success, base y at the first oncoming person's reach or
-    nan if none came within it)."""
+    """(run_id, success, base y at the first oncoming person's reach, Δy
+    and |Δθ| over the AFTER seconds that follow; nan if nobody oncoming
+    came within reach)."""
     scenario = LoadRunScenario(SpecFromRow(STUDIES["doorway"], row))
     oncoming = np.array([h.start[1] > 0 for h in scenario.humans])
     _, t, x, _, _, _, gap = TRACE["Resimulate"](scenario)
     near = np.any((gap < REACH) & oncoming[None], axis=1)
-    y = x[np.argmax(near), 1] if near.any() else np.nan
-    return row["run_id"], row["success"] is True, float(y)
+    if not near.any():
+        return row["run_id"], row["success"] is True, np.nan, np.nan, np.nan
+    i = int(np.argmax(near))
+    j = min(int(np.searchsorted(t, t[i] + AFTER)), len(t) - 1)
+    turn = np.abs(np.diff(np.unwrap(x[i : j + 1, 2]))).sum()
+    return (
+        row["run_id"],
+        row["success"] is True,
+        float(x[i, 1]),
+        float(x[j, 1] - x[i, 1]),
+        float(turn),
+    )
 
 
 def main(count):
@@ -75,6 +90,19 @@ def main(count):
             f"(of them arrived {np.sum(inside & ok)}); not in it: arrived "
             f"{np.sum(~inside & ok)} of {np.sum(~inside)}"
         )
+    print(f"  over the {AFTER:.0f} s after: the base's Δy and total |Δθ|, medians")
+    for m in METHODS:
+        ys = np.array([by[m, s][2] for s in seeds])
+        groups = (("in the mouth", ys > MOUTH), ("before it", ys <= MOUTH))
+        for name, group in groups:
+            chosen = [s for s, g in zip(seeds, group, strict=True) if g]
+            dy = np.array([by[m, s][3] for s in chosen])
+            turn = np.array([by[m, s][4] for s in chosen])
+            if len(dy):
+                print(
+                    f"    {m:6s} {name:12s} n {len(dy):2d}: Δy {np.median(dy):+.2f} m, "
+                    f"|Δθ| {np.median(turn):.2f} rad"
+                )
     for m in METHODS[1:]:
         e = PairedDifference(list(mouth["SM2ITH"]), list(mouth[m]))
         print(
