@@ -103,9 +103,9 @@ def _Controller(enabled=True, scenario=None):
     return MpcController.FromScenario(robot, scenario)
 
 
-def _StepUntil(controller, q, humans, seconds):
+def _StepUntil(controller, q, humans, seconds, done_tolerances=None):
     """The recovery's decisions, step by step, with the robot and the people
-    held where they are."""
+    held where they are (and the phase's tolerances, if any)."""
     state = controller.InitialState()
     targets = {t.name: t.target for t in controller.tasks}
     recovery = controller.recovery
@@ -117,6 +117,7 @@ def _StepUntil(controller, q, humans, seconds):
             q0=np.array(q),
             targets=targets,
             humans=humans,
+            done_tolerances=done_tolerances,
         )
         records.append((base, state.recovery.status))
     return state, records
@@ -220,6 +221,5 @@ def test_a_stall_short_of_the_phase_tolerance_is_recovered():
     # Facing away from the target (x), which is behind the base.
     ahead = [0.27, 1.5, 0.0, 0.58, 0.06, 0.0, 0.0]
     for tolerances, expected in ((None, 0), (references.done_tolerances, 1)):
-        controller.recovery.SetPhaseTolerances(tolerances)
-        state, _ = _StepUntil(controller, ahead, None, 5.0)
+        state, _ = _StepUntil(controller, ahead, None, 5.0, tolerances)
         assert state.recovery.routes == expected

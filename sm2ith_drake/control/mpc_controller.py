@@ -293,8 +293,9 @@ class MpcController:
             self.predictor.SetPrediction(prediction)
             humans = prediction.estimate
             start -= prediction.compute_time
-        self.recovery.SetPhaseTolerances(done_tolerances)
-        u = self._Recover(new, state, time_now, q0, nu0, targets, humans)
+        u = self._Recover(
+            new, state, time_now, q0, nu0, targets, humans, done_tolerances
+        )
         if u is not None:
             record.mode = record.status = "recovery"
             new.plan, new.plan_age, new.last_solution = None, 0, None
@@ -377,7 +378,7 @@ class MpcController:
         new.record = record
         return new
 
-    def _Recover(self, new, state, time_now, q0, nu0, targets, humans):
+    def _Recover(self, new, state, time_now, q0, nu0, targets, humans, tolerances):
         """The input u of a step that the recovery drives (its state updated
         in ``new``), or None for the MPC to plan. The base velocity it asks
         for is reached as fast as the acceleration limits allow, the arm
@@ -386,17 +387,19 @@ class MpcController:
         if not (np.all(np.isfinite(q0)) and np.all(np.isfinite(nu0))):
             return None
         new.recovery, nu_base = self.recovery.Step(
-            state.recovery, time_now=time_now, q0=q0, targets=targets, humans=humans
+            state.recovery,
+            time_now=time_now,
+            q0=q0,
+            targets=targets,
+            humans=humans,
+            done_tolerances=tolerances,
         )
         if nu_base is None:
             return None
         nu_want = np.zeros(self.robot.num_velocities)
         nu_want[: len(nu_base)] = nu_base
-        u = np.clip(
-            (nu_want - nu0) / self.period,
-            self.robot.nudot_lower,
-            self.robot.nudot_upper,
-        )
+        lower, upper = self.robot.nudot_lower, self.robot.nudot_upper
+        u = np.clip((nu_want - nu0) / self.period, lower, upper)
         q1, _ = ModelStep(self.robot, q0, nu0, u, self.period)
         # The walls: the DT-CBF holds, or the step keeps at least half the
         # obstacle margin (a route may run within the margin: it was planned
@@ -406,11 +409,8 @@ class MpcController:
         walls_ok = h1 >= min((1.0 - self.safety.gamma) * h0, floor)
         if walls_ok and self.ReplayIsSafe(q0, nu0, u, humans):
             return u
-        new.recovery = dataclasses.replace(
-            new.recovery,
-            route=None,
-            status="recovery ended: the barriers refused a step",
-        )
+        end = "recovery ended: the barriers refused a step"
+        new.recovery = dataclasses.replace(new.recovery, route=None, status=end)
         return None
 
     def ReplayIsSafe(self, q0, nu0, u, humans) -> bool:

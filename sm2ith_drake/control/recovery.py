@@ -138,15 +138,15 @@ class Recovery:
         )
         self._base = first.name if base else None
         self._holonomic = NumBaseVelocities(robot) == 3
-        self._goal_tolerance = config.goal_tolerance
 
-    def SetPhaseTolerances(self, done_tolerances: dict | None) -> None:
-        """Takes this control step's phase tolerances by task (the task
-        sequence's; None or {}: none). A base short of its target by more
-        than its phase's tolerance is not at its goal, even within
-        ``goal_tolerance``: the recovery then aims at the phase's."""
+    def GoalTolerance(self, done_tolerances: dict | None) -> float:
+        """How near its target the base counts as at its goal, given the
+        control step's phase tolerances by task (the task sequence's; None
+        or {}: none): ``goal_tolerance``, or the phase's where smaller (a
+        base short of its target by more than its phase's tolerance is not
+        at its goal)."""
         phase = (done_tolerances or {}).get(self._base, np.inf)
-        self._goal_tolerance = min(self.config.goal_tolerance, float(phase))
+        return min(self.config.goal_tolerance, float(phase))
 
     def InitialState(self) -> RecoveryState:
         return RecoveryState()
@@ -166,9 +166,19 @@ class Recovery:
         clear = FootprintClearance(footprint, pose, self.walls)[0]
         return clear - self.safety.obstacle_margin
 
-    def Step(self, state: RecoveryState, *, time_now, q0, targets, humans):
+    def Step(
+        self,
+        state: RecoveryState,
+        *,
+        time_now,
+        q0,
+        targets,
+        humans,
+        done_tolerances=None,
+    ):
         """Returns (new state, the base velocity to drive (its ν entries) or
-        None for the MPC to plan this step)."""
+        None for the MPC to plan this step). ``done_tolerances``:
+        TaskReferences.done_tolerances (see GoalTolerance)."""
         cfg = self.config
         if not cfg.enabled or self._base is None or not np.all(np.isfinite(q0)):
             return state, None
@@ -211,18 +221,19 @@ class Recovery:
         )
         if not stalled or someone_moving:
             return new, None
-        if np.linalg.norm(target - q0[:2]) <= self._goal_tolerance:
+        goal_tolerance = self.GoalTolerance(done_tolerances)
+        if np.linalg.norm(target - q0[:2]) <= goal_tolerance:
             return new, None
         new.history = new.history[-1:]  # the next try after another stall
         keep = np.linalg.norm(people_p - q0[:2], axis=1) <= DISC_RANGE
         reach = self.safety.human_radius + self.safety.human_margin
         discs = np.column_stack([people_p[keep], np.full(int(keep.sum()), reach)])
-        route = self._Route(new, q0, target, discs)
+        route = self._Route(new, q0, target, discs, goal_tolerance)
         retreat = False
         if route is None and len(discs):
             back = RetreatPoint(new.trail, q0[:2])
             if back is not None:
-                route, retreat = self._Route(new, q0, back, discs, tolerance=0.15), True
+                route, retreat = self._Route(new, q0, back, discs, 0.15), True
         if route is None:
             new.no_route += 1
             new.status = new.status or "no route"
@@ -239,7 +250,7 @@ class Recovery:
             new.route = None
         return new, nu
 
-    def _Route(self, new, q0, goal, discs, tolerance=None):
+    def _Route(self, new, q0, goal, discs, tolerance):
         """PlanRoute from the base pose to ``goal`` keeping the clearance,
         else keeping only half the obstacle margin (a stuck robot may have
         to squeeze out); None: no route either way."""
@@ -251,7 +262,7 @@ class Recovery:
                     self.walls,
                     np.asarray(q0, dtype=float)[:NUM_BASE_POSITIONS],
                     goal,
-                    goal_tolerance=tolerance or self._goal_tolerance,
+                    goal_tolerance=tolerance,
                     clearance=clearance,
                     discs=discs,
                     holonomic=self._holonomic,
