@@ -14,6 +14,7 @@ from pydrake.systems.analysis import SimulatorConfig
 
 from sm2ith_drake.scenario_hardware import HardwareConfig
 from sm2ith_drake.scenario_options import (
+    OvertakingConfig,
     ReciprocityConfig,
     RecoveryConfig,
     SafetyConfig,
@@ -250,6 +251,8 @@ class PredictionConfig:
     robot_share: float = 0.5
     # That share estimated per person from how they moved (not in the paper).
     reciprocity: ReciprocityConfig = field(default_factory=ReciprocityConfig)
+    # Overtakers predicted to keep clear of the robot (not in the paper).
+    overtaking: OvertakingConfig = field(default_factory=OvertakingConfig)
     # Human limits in the prediction model.
     max_speed: float = 1.5
     max_acceleration: float = 2.0

@@ -76,6 +76,15 @@ def _NonNegative(value, name: str) -> None:
         raise ScenarioError(f"{name} must be ≥ 0, got {value}")
 
 
+def _Within(value, interval: str, name: str) -> None:
+    """``value`` in ``interval``, written "[a, b]", "(a, b)" or half-open."""
+    low, high = (float(x) for x in interval[1:-1].split(","))
+    above = value >= low if interval[0] == "[" else value > low
+    below = value <= high if interval[-1] == "]" else value < high
+    if not (above and below):
+        raise ScenarioError(f"{name} must be in {interval}, got {value}")
+
+
 def _OneOf(value, choices: tuple, name: str) -> None:
     if value not in choices:
         raise ScenarioError(f"{name} must be {'|'.join(choices)}: {value!r}")
@@ -182,11 +191,7 @@ def _ValidateController(scenario: Scenario) -> None:
         _Positive(getattr(r, name), f"controller.recovery.{name}")
     for name in ("goal_tolerance", "people_speed", "clearance"):
         _NonNegative(getattr(r, name), f"controller.recovery.{name}")
-    if not 0.0 < r.speed_fraction <= 1.0:
-        raise ScenarioError(
-            "controller.recovery.speed_fraction must be in (0, 1], "
-            f"got {r.speed_fraction}"
-        )
+    _Within(r.speed_fraction, "(0, 1]", "controller.recovery.speed_fraction")
 
 
 def _ValidateGates(scenario: Scenario, i: int, h: HumanConfig) -> None:
@@ -272,24 +277,21 @@ def _ValidatePeople(scenario: Scenario) -> None:
             f"prediction.max_speed_floor ({pr.max_speed_floor}) must not exceed "
             f"prediction.max_speed ({pr.max_speed})"
         )
-    if not 0 <= pr.robot_share <= 1:
-        raise ScenarioError(
-            f"prediction.robot_share must be in [0, 1], got {pr.robot_share}"
-        )
+    _Within(pr.robot_share, "[0, 1]", "prediction.robot_share")
     _Positive(pr.reciprocity.memory, "prediction.reciprocity.memory")
     for name in ("prior_weight", "min_difference", "max_share"):
         _NonNegative(getattr(pr.reciprocity, name), f"prediction.reciprocity.{name}")
+    ov = pr.overtaking
+    _Within(ov.share, "[0, 1]", "prediction.overtaking.share")
+    _Within(ov.angle, "(0, 90)", "prediction.overtaking.angle")
+    for name in ("min_robot_speed", "min_person_speed"):
+        _NonNegative(getattr(ov, name), f"prediction.overtaking.{name}")
     s = scenario.safety
-    if not 0 < s.gamma <= 1:
-        raise ScenarioError(f"safety.gamma must be in (0, 1], got {s.gamma}")
+    _Within(s.gamma, "(0, 1]", "safety.gamma")
     _OneOf(s.mode, ("safe", "paper"), "safety.mode")
     _OneOf(s.inside_barrier, ("decay", "exit"), "safety.inside_barrier")
-    if s.guard_steps < 0:
-        raise ScenarioError(f"safety.guard_steps must be ≥ 0, got {s.guard_steps}")
-    if s.static_guard_steps < 0:
-        raise ScenarioError(
-            f"safety.static_guard_steps must be ≥ 0, got {s.static_guard_steps}"
-        )
+    _NonNegative(s.guard_steps, "safety.guard_steps")
+    _NonNegative(s.static_guard_steps, "safety.static_guard_steps")
     _NonNegative(s.guard_deviation, "safety.guard_deviation")
     _NonNegative(s.guard_hold, "safety.guard_hold")
     _NonNegative(s.guard_gap, "safety.guard_gap")
@@ -307,11 +309,7 @@ def _ValidatePeople(scenario: Scenario) -> None:
     pc = scenario.perception
     _OneOf(pc.estimator, ("kalman", "truth"), "perception.estimator")
     _NonNegative(pc.noise, "perception.noise")
-    if not 0 <= pc.dropout_probability < 1:
-        raise ScenarioError(
-            "perception.dropout_probability must be in [0, 1), got "
-            f"{pc.dropout_probability}"
-        )
+    _Within(pc.dropout_probability, "[0, 1)", "perception.dropout_probability")
     _Positive(pc.period, "perception.period")
     _NonNegative(pc.acceleration_noise, "perception.acceleration_noise")
     _Positive(pc.track_timeout, "perception.track_timeout")

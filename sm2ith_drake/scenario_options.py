@@ -57,6 +57,28 @@ class ReciprocityConfig:
 
 
 @dataclass
+class OvertakingConfig:
+    """Who overtakes keeps clear (control/prediction/reciprocity.py, not in
+    the paper): a person walking toward the moving robot from behind it,
+    the two going the same way, is predicted to take ``share`` of the
+    avoidance of the robot instead of ``prediction.robot_share``, as the
+    rule of the road has an overtaker keep clear. "From behind" is: the
+    robot's base within ``angle`` (degrees) of the person's direction of
+    travel (their preferred velocity), and the base moving (faster than
+    ``min_robot_speed``, m/s) within ``angle`` of the direction away from
+    the person. Everyone else (head-on, crossing, a standing robot) keeps
+    the configured share. With reciprocity on, the rule overrides its
+    estimate while it applies."""
+
+    enabled: bool = False
+    share: float = 1.0
+    angle: float = 45.0
+    min_robot_speed: float = 0.05
+    # People slower than this (m/s) have no direction of travel.
+    min_person_speed: float = 0.1
+
+
+@dataclass
 class SafetyConfig:
     """DT-CBF collision avoidance (eq. smith_avoid_coll)."""
 

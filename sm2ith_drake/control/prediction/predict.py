@@ -25,6 +25,7 @@ from sm2ith_drake.control.prediction.intent import SteerAroundWalls
 from sm2ith_drake.control.prediction.orca_model import OrcaModel
 from sm2ith_drake.control.prediction.reciprocity import (
     EstimatedShares,
+    OvertakingShares,
     ShareObservations,
     UpdateEvidence,
 )
@@ -166,8 +167,18 @@ class HumanPredictorModel:
                 hysteresis=cfg.neighbor_hysteresis,
             )
             evidence, shares = self._RobotShares(state, estimate, slots)
-            self.orca.SetRobotShares(shares)
             robot = self._RobotTrajectory(q0, nu0, warm_start_inputs)
+            if cfg.overtaking.enabled and robot is not None:
+                shares = OvertakingShares(
+                    shares,
+                    slots.p0,
+                    slots.v_pref,
+                    slots.active,
+                    robot.p[0],
+                    robot.v[0],
+                    cfg.overtaking,
+                )
+            self.orca.SetRobotShares(shares)
             if robot is not None:
                 with PROFILER.Phase("predictor_forward_sim"):
                     positions, actions, multipliers = self.orca.ForwardSimulate(

@@ -127,3 +127,37 @@ def EstimatedShares(evidence: dict, slot_ids, prior: float, prior_weight: float)
         if weight > 0.0:
             shares[j] = (prior_weight * prior + total) / (prior_weight + weight)
     return shares
+
+
+def OvertakingShares(shares, positions, preferred, active, robot_p, robot_v, config):
+    """``shares`` (H,) with ``config.share`` (an OvertakingConfig) for every
+    active slot whose person overtakes the robot: the robot's base
+    ``robot_p`` within ``config.angle`` of the person's direction of travel
+    (``preferred`` (H, 2), faster than ``config.min_person_speed``), and the
+    base's velocity ``robot_v`` (faster than ``config.min_robot_speed``)
+    within ``config.angle`` of the direction away from the person.
+    ``positions`` (H, 2) are the people's."""
+    out = np.array(shares, dtype=float)
+    robot_p = np.asarray(robot_p, dtype=float)[:2]
+    robot_v = np.asarray(robot_v, dtype=float)[:2]
+    robot_speed = float(np.linalg.norm(robot_v))
+    if not (np.isfinite(robot_speed) and robot_speed > config.min_robot_speed):
+        return out
+    cos = np.cos(np.radians(config.angle))
+    d = robot_p[None] - np.asarray(positions, dtype=float)
+    dist = np.linalg.norm(d, axis=1)
+    v = np.asarray(preferred, dtype=float)
+    speed = np.linalg.norm(v, axis=1)
+    with np.errstate(invalid="ignore"):
+        ahead = np.sum(d * v, axis=1) >= cos * dist * speed
+        away = d @ robot_v >= cos * dist * robot_speed
+    overtaking = (
+        np.asarray(active, dtype=bool)
+        & np.isfinite(dist)
+        & (dist > 1e-9)
+        & (speed > config.min_person_speed)
+        & ahead
+        & away
+    )
+    out[overtaking] = config.share
+    return out
