@@ -68,10 +68,18 @@ class OvertakingConfig:
     ``min_robot_speed``, m/s) within ``angle`` of the direction away from
     the person. Everyone else (head-on, crossing, a standing robot) keeps
     the configured share. With reciprocity on, the rule overrides its
-    estimate while it applies."""
+    estimate while it applies. With ``wait``, such a person is also
+    predicted to wait behind the robot (their preferred velocity zero while
+    the rule applies), as people do behind someone going through a door.
+    Without ``guard``, the safety guard (SafetyConfig.guard_steps) leaves
+    such a person out while the rule applies: the robot, driving away from
+    them, does not close in on them, and the guard's constant-velocity rows
+    would have it evade someone it cannot outrun, as CVMM does."""
 
     enabled: bool = False
     share: float = 1.0
+    wait: bool = False
+    guard: bool = True
     angle: float = 45.0
     min_robot_speed: float = 0.05
     # People slower than this (m/s) have no direction of travel.

@@ -1,11 +1,11 @@
 """Overtakers predicted to keep clear of the robot
-(prediction.overtaking, control/prediction/reciprocity.py OvertakingShares)."""
+(prediction.overtaking, control/prediction/reciprocity.py Overtaking)."""
 
 import numpy as np
 import pytest
 
 from sm2ith_drake.control.prediction.predict import HumanPredictorModel
-from sm2ith_drake.control.prediction.reciprocity import OvertakingShares
+from sm2ith_drake.control.prediction.reciprocity import Overtaking
 from sm2ith_drake.humans.messages import HumanEstimate
 from sm2ith_drake.robots import MobileManipulator
 from sm2ith_drake.scenario import PredictionConfig
@@ -15,9 +15,9 @@ N, DT = 10, 0.2
 ROBOT_P, ROBOT_V = np.array([0.0, 0.0]), np.array([0.0, 0.3])
 
 
-def _Shares(p, v, robot_v=ROBOT_V, active=True, **config):
-    return OvertakingShares(
-        [0.5],
+def _Shares(p, v, robot_v=ROBOT_V, active=True, share=1.0, **config):
+    """The share of a person at p walking v: ``share`` if they overtake."""
+    behind = Overtaking(
         np.array([p], dtype=float),
         np.array([v], dtype=float),
         [active],
@@ -25,6 +25,7 @@ def _Shares(p, v, robot_v=ROBOT_V, active=True, **config):
         robot_v,
         OvertakingConfig(enabled=True, **config),
     )[0]
+    return share if behind else 0.5
 
 
 @pytest.mark.parametrize(
@@ -101,3 +102,66 @@ def test_the_predictor_predicts_the_overtaker_with_the_share():
         warm_start_inputs=inputs,
     )
     np.testing.assert_allclose(prediction.robot_shares, [0.5, 0.5])
+    # With wait: the overtaker alone is predicted with v_pref 0, and slows.
+    config = PredictionConfig(
+        predictor="orca_kkt",
+        max_humans=2,
+        overtaking=OvertakingConfig(enabled=True, wait=True),
+    )
+    model = HumanPredictorModel(
+        config, horizon=N, time_step=DT, control_period=DT, robot=robot
+    )
+    prediction, state = model.Predict(
+        model.InitialState(),
+        estimate=estimate,
+        q0=q0,
+        nu0=nu0,
+        warm_start_inputs=inputs,
+    )
+    slot = {int(i): j for j, i in enumerate(prediction.slot_ids)}
+    np.testing.assert_allclose(prediction.preferred_velocities[slot[3]], [0.0, 0.0])
+    np.testing.assert_allclose(prediction.preferred_velocities[slot[4]], [-1.2, 0.0])
+    speeds = np.linalg.norm(prediction.actions[:, slot[3]], axis=-1)
+    assert speeds[-1] < 0.05 and np.all(np.diff(speeds) <= 1e-6)
+    # The filtered preferred velocity (the predictor's state) is kept.
+    np.testing.assert_allclose(state.preferred_velocities[3], [1.4, 0.0])
+
+
+@pytest.mark.parametrize("guard", [True, False])
+def test_without_guard_the_overtaker_is_left_out_of_the_guard(guard):
+    """guard_deviation 0 guards everyone; with overtaking.guard false the
+    person behind the moving robot is left out, the one ahead is not."""
+    robot = MobileManipulator("ridgeback_ur10")
+    config = PredictionConfig(
+        predictor="orca_kkt",
+        max_humans=2,
+        overtaking=OvertakingConfig(enabled=True, wait=True, guard=guard),
+    )
+    model = HumanPredictorModel(
+        config,
+        horizon=N,
+        time_step=DT,
+        control_period=DT,
+        robot=robot,
+        guard_deviation=0.0,
+        guard_hold=0.6,
+    )
+    nu0 = np.zeros(robot.num_velocities)
+    nu0[0] = 0.3
+    q0 = np.array(robot.default_q, dtype=float)
+    estimate = HumanEstimate(
+        ids=[3, 4],
+        positions=[q0[:2] + (-2.5, 0.1), q0[:2] + (3.0, -0.1)],
+        velocities=[(1.4, 0.0), (-1.2, 0.0)],
+    )
+    prediction, _ = model.Predict(
+        model.InitialState(),
+        estimate=estimate,
+        q0=q0,
+        nu0=nu0,
+        warm_start_inputs=np.zeros((N, robot.num_velocities)),
+    )
+    assert (3 in prediction.guard_steps_by_id) == guard
+    assert 4 in prediction.guard_steps_by_id
+    guarded = dict(zip(prediction.slot_ids, prediction.guarded, strict=True))
+    assert guarded[3] == guard and guarded[4]

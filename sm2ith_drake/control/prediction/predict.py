@@ -25,7 +25,7 @@ from sm2ith_drake.control.prediction.intent import SteerAroundWalls
 from sm2ith_drake.control.prediction.orca_model import OrcaModel
 from sm2ith_drake.control.prediction.reciprocity import (
     EstimatedShares,
-    OvertakingShares,
+    Overtaking,
     ShareObservations,
     UpdateEvidence,
 )
@@ -154,6 +154,7 @@ class HumanPredictorModel:
         slots.max_speed = PersonalMaxSpeeds(slots, cfg)
         neighbors = state.neighbors
         actions = multipliers = shares = None
+        behind = np.zeros(self.num_slots, dtype=bool)
         evidence = {}
         if cfg.predictor == "cvmm":
             positions = ConstantVelocityPrediction(slots.p0, slots.v0, self.N, self.dt)
@@ -169,8 +170,7 @@ class HumanPredictorModel:
             evidence, shares = self._RobotShares(state, estimate, slots)
             robot = self._RobotTrajectory(q0, nu0, warm_start_inputs)
             if cfg.overtaking.enabled and robot is not None:
-                shares = OvertakingShares(
-                    shares,
+                behind = Overtaking(
                     slots.p0,
                     slots.v_pref,
                     slots.active,
@@ -178,6 +178,9 @@ class HumanPredictorModel:
                     robot.v[0],
                     cfg.overtaking,
                 )
+                shares = np.where(behind, cfg.overtaking.share, shares)
+                if cfg.overtaking.wait:
+                    slots.v_pref = np.where(behind[:, None], 0.0, slots.v_pref)
             self.orca.SetRobotShares(shares)
             if robot is not None:
                 with PROFILER.Phase("predictor_forward_sim"):
@@ -197,6 +200,9 @@ class HumanPredictorModel:
                 hold_steps=self.guard_hold_steps,
                 close=self._Close(estimate, distances),
             )
+            if not cfg.overtaking.guard:
+                for i in slots.slot_ids[behind]:
+                    guards.pop(int(i), None)
         guarded = np.array([int(i) in guards for i in slots.slot_ids], dtype=bool)
         prediction = HumanPrediction(
             model=cfg.predictor,

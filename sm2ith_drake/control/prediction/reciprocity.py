@@ -129,20 +129,19 @@ def EstimatedShares(evidence: dict, slot_ids, prior: float, prior_weight: float)
     return shares
 
 
-def OvertakingShares(shares, positions, preferred, active, robot_p, robot_v, config):
-    """``shares`` (H,) with ``config.share`` (an OvertakingConfig) for every
-    active slot whose person overtakes the robot: the robot's base
-    ``robot_p`` within ``config.angle`` of the person's direction of travel
-    (``preferred`` (H, 2), faster than ``config.min_person_speed``), and the
-    base's velocity ``robot_v`` (faster than ``config.min_robot_speed``)
-    within ``config.angle`` of the direction away from the person.
-    ``positions`` (H, 2) are the people's."""
-    out = np.array(shares, dtype=float)
+def Overtaking(positions, preferred, active, robot_p, robot_v, config):
+    """(H,) whether each active slot's person overtakes the robot: the
+    robot's base ``robot_p`` within ``config.angle`` (an OvertakingConfig)
+    of the person's direction of travel (``preferred`` (H, 2), faster than
+    ``config.min_person_speed``), and the base's velocity ``robot_v``
+    (faster than ``config.min_robot_speed``) within ``config.angle`` of the
+    direction away from the person. ``positions`` (H, 2) are the people's."""
+    active = np.asarray(active, dtype=bool)
     robot_p = np.asarray(robot_p, dtype=float)[:2]
     robot_v = np.asarray(robot_v, dtype=float)[:2]
     robot_speed = float(np.linalg.norm(robot_v))
     if not (np.isfinite(robot_speed) and robot_speed > config.min_robot_speed):
-        return out
+        return np.zeros(len(active), dtype=bool)
     cos = np.cos(np.radians(config.angle))
     d = robot_p[None] - np.asarray(positions, dtype=float)
     dist = np.linalg.norm(d, axis=1)
@@ -151,13 +150,11 @@ def OvertakingShares(shares, positions, preferred, active, robot_p, robot_v, con
     with np.errstate(invalid="ignore"):
         ahead = np.sum(d * v, axis=1) >= cos * dist * speed
         away = d @ robot_v >= cos * dist * robot_speed
-    overtaking = (
-        np.asarray(active, dtype=bool)
+    return (
+        active
         & np.isfinite(dist)
         & (dist > 1e-9)
         & (speed > config.min_person_speed)
         & ahead
         & away
     )
-    out[overtaking] = config.share
-    return out

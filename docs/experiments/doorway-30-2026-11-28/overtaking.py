@@ -1,0 +1,111 @@
+"""The Stretch 3 doorway with instructed people, 30 seeds per person count:
+SM²ITH with ``prediction.overtaking`` (a person walking toward the moving
+robot from behind it is predicted to take all of the avoidance of it,
+``share``; with ``wait``, also to wait behind it) against SM²ITH's, CVMM's
+and React's default runs on the same seeds (this directory's
+``doorway.csv``; CVMM and React do not read the option), paired on
+(count, seed), per count and pooled, in each variant; the runs with
+contact; and, with one person, SM²ITH's outcomes by where the person
+starts (behind the robot, walking the same way, or oncoming).
+
+    sm2ith experiment doorway --runs 30 --variant paper,safe --people instructed \\
+        --only doorway_stretch3 --methods SM2ITH --jobs 2 \\
+        --out docs/experiments/doorway-30-2026-11-28/overtaking/OPTION \\
+        --scenario_text '{prediction: {overtaking: {enabled: true}}}'
+    python docs/experiments/doorway-30-2026-11-28/overtaking.py
+
+OPTION: ``share`` (the text above), ``wait`` (``{enabled: true, wait:
+true}``) and ``wait-noguard`` (``{enabled: true, wait: true, guard:
+false}``, `safe` only: `paper` has no guard). Output: overtaking.txt.
+"""
+
+from pathlib import Path
+
+from sm2ith_drake.experiments.campaign import ReadRows
+from sm2ith_drake.experiments.statistics import PairedDifference
+
+HERE = Path(__file__).resolve().parent
+OPTIONS = ("share", "wait", "wait-noguard")
+METHODS = ("SM2ITH", "CVMM", "React")
+COUNTS = (1, 2, 3, 5)
+
+
+def Runs(path):
+    """(variant, count, method, seed) → row, Stretch 3, instructed people."""
+    return {
+        (r["variant"], r["humans"], r["method"], r["seed"]): r
+        for r in ReadRows(path)
+        if (r["robot"], r["people"]) == ("stretch3", "instructed")
+    }
+
+
+def Ok(runs, key):
+    return float(runs[key]["success"] is True)
+
+
+def Compare(new, default, variant, counts):
+    """One line: the option's arrivals against each method's default."""
+    keys = sorted(
+        (h, s) for (v, h, m, s) in new if v == variant and m == "SM2ITH" and h in counts
+    )
+    ours = [Ok(new, (variant, h, "SM2ITH", s)) for h, s in keys]
+    contact = sum(new[(variant, h, "SM2ITH", s)]["collision"] is True for h, s in keys)
+    label = "pooled" if len(counts) > 1 else f"{counts[0]} people"
+    text = f"  {variant:5s} {label:9s} {int(sum(ours)):3d}/{len(keys)}"
+    for m in METHODS:
+        theirs = [Ok(default, (variant, h, m, s)) for h, s in keys]
+        e = PairedDifference(ours, theirs)
+        ci = f"{e.value:+.2f} [{e.low:+.2f}, {e.high:+.2f}]"
+        text += f" | {m} {int(sum(theirs)):3d} ({ci})"
+    return text + f" | runs with contact {contact}"
+
+
+def ByStart(new, default, option):
+    """SM²ITH's one-person runs in `safe` by where the person starts."""
+    from sm2ith_drake.experiments.runs import LoadRunScenario, SpecFromRow
+    from sm2ith_drake.experiments.studies import STUDIES
+
+    out = []
+    for where in ("behind", "oncoming"):
+        seeds = []
+        for (v, h, m, s), row in sorted(new.items()):
+            if (v, h, m) != ("safe", 1, "SM2ITH"):
+                continue
+            person = LoadRunScenario(SpecFromRow(STUDIES["doorway"], row)).humans[0]
+            if (person.start[1] < 0) == (where == "behind"):
+                seeds.append(s)
+        counts = {
+            m: int(sum(Ok(default, ("safe", 1, m, s)) for s in seeds)) for m in METHODS
+        }
+        ours = int(sum(Ok(new, ("safe", 1, "SM2ITH", s)) for s in seeds))
+        out.append(
+            f"  {where:8s} {len(seeds):2d} runs: {option} {ours}, default SM2ITH "
+            f"{counts['SM2ITH']}, CVMM {counts['CVMM']}, React {counts['React']}"
+        )
+    return out
+
+
+def main():
+    default = Runs(HERE / "doorway.csv")
+    lines = []
+    for option in OPTIONS:
+        path = HERE / "overtaking" / option / "doorway.csv"
+        if not path.exists():
+            continue
+        new = Runs(path)
+        lines.append(
+            f"prediction.overtaking, {option}: SM2ITH with it (arrivals) against "
+            "each method's default runs (arrivals, paired difference [95 % CI])"
+        )
+        for variant in sorted({k[0] for k in new}, reverse=True):
+            for counts in (COUNTS, *((c,) for c in COUNTS)):
+                lines.append(Compare(new, default, variant, counts))
+        lines.append("  one person, safe, by where the person starts:")
+        lines += ByStart(new, default, option)
+    text = "\n".join(lines)
+    print(text)
+    (HERE / "overtaking.txt").write_text(text + "\n")
+
+
+if __name__ == "__main__":
+    main()
