@@ -16,7 +16,10 @@ starts (behind the robot, walking the same way, or oncoming).
 
 OPTION: ``share`` (the text above), ``wait`` (``{enabled: true, wait:
 true}``) and ``wait-noguard`` (``{enabled: true, wait: true, guard:
-false}``, `safe` only: `paper` has no guard). Output: overtaking.txt.
+false}``, `safe` only: `paper` has no guard); and ``others``: the last
+with ORCA and social-force people (``--runs 10 --variant safe,paper
+--people orca,social_force``), against the final re-run's runs on the
+same seeds (``../final-2026-11-28/doorway.csv``). Output: overtaking.txt.
 """
 
 from pathlib import Path
@@ -30,12 +33,12 @@ METHODS = ("SM2ITH", "CVMM", "React")
 COUNTS = (1, 2, 3, 5)
 
 
-def Runs(path):
-    """(variant, count, method, seed) → row, Stretch 3, instructed people."""
+def Runs(path, people="instructed"):
+    """(variant, count, method, seed) → row, Stretch 3, ``people``."""
     return {
         (r["variant"], r["humans"], r["method"], r["seed"]): r
         for r in ReadRows(path)
-        if (r["robot"], r["people"]) == ("stretch3", "instructed")
+        if (r["robot"], r["people"]) == ("stretch3", people)
     }
 
 
@@ -102,6 +105,18 @@ def main():
                 lines.append(Compare(new, default, variant, counts))
         lines.append("  one person, safe, by where the person starts:")
         lines += ByStart(new, default, option)
+    others = HERE / "overtaking" / "others" / "doorway.csv"
+    if others.exists():
+        final = HERE.parent / "final-2026-11-28" / "doorway.csv"
+        for people in ("orca", "social_force"):
+            lines.append(
+                f"prediction.overtaking, wait-noguard, {people} people, 10 seeds per "
+                "count: against the final re-run's runs (final-2026-11-28)"
+            )
+            new, default = Runs(others, people), Runs(final, people)
+            for variant in ("safe", "paper"):
+                for counts in (COUNTS, *((c,) for c in COUNTS)):
+                    lines.append(Compare(new, default, variant, counts))
     text = "\n".join(lines)
     print(text)
     (HERE / "overtaking.txt").write_text(text + "\n")
