@@ -54,97 +54,17 @@ def test_only_a_moving_robot_is_overtaken_and_only_active_slots():
     assert _Shares((0.0, -2.0), (0.0, np.nan)) == 0.5
 
 
-def test_the_predictor_predicts_the_overtaker_with_the_share():
-    """Through the predictor: the person behind the moving robot gets the
-    share, the one ahead keeps robot_share, and the prediction the MPC's
-    KKT embedding reads carries both."""
+def _PredictTwo(overtaking=None, **guards):
+    """One prediction of two people near a Ridgeback–UR10 driving along +x
+    at 0.3 m/s (its heading at default_q): id 3 catching up from behind at
+    1.4 m/s, id 4 coming head-on at 1.2 m/s. Returns the prediction and
+    the predictor's state after it."""
     robot = MobileManipulator("ridgeback_ur10")
-    config = PredictionConfig(
-        predictor="orca_kkt",
-        max_humans=2,
-        overtaking=OvertakingConfig(enabled=True),
-    )
+    config = PredictionConfig(predictor="orca_kkt", max_humans=2)
+    if overtaking is not None:
+        config.overtaking = overtaking
     model = HumanPredictorModel(
-        config, horizon=N, time_step=DT, control_period=DT, robot=robot
-    )
-    nu0 = np.zeros(robot.num_velocities)
-    nu0[0] = 0.3  # the base drives along +x (its heading at default_q)
-    q0 = np.array(robot.default_q, dtype=float)
-    estimate = HumanEstimate(
-        ids=[3, 4],
-        positions=[q0[:2] + (-2.5, 0.1), q0[:2] + (3.0, -0.1)],
-        velocities=[(1.4, 0.0), (-1.2, 0.0)],
-    )
-    inputs = np.zeros((N, robot.num_velocities))
-    prediction, _ = model.Predict(
-        model.InitialState(),
-        estimate=estimate,
-        q0=q0,
-        nu0=nu0,
-        warm_start_inputs=inputs,
-    )
-    shares = dict(zip(prediction.slot_ids, prediction.robot_shares, strict=True))
-    assert shares[3] == pytest.approx(1.0)
-    assert shares[4] == pytest.approx(0.5)
-    # Off (the default): everyone the paper's share.
-    model = HumanPredictorModel(
-        PredictionConfig(predictor="orca_kkt", max_humans=2),
-        horizon=N,
-        time_step=DT,
-        control_period=DT,
-        robot=robot,
-    )
-    prediction, _ = model.Predict(
-        model.InitialState(),
-        estimate=estimate,
-        q0=q0,
-        nu0=nu0,
-        warm_start_inputs=inputs,
-    )
-    np.testing.assert_allclose(prediction.robot_shares, [0.5, 0.5])
-    # With wait: the overtaker alone is predicted with v_pref 0, and slows.
-    config = PredictionConfig(
-        predictor="orca_kkt",
-        max_humans=2,
-        overtaking=OvertakingConfig(enabled=True, wait=True),
-    )
-    model = HumanPredictorModel(
-        config, horizon=N, time_step=DT, control_period=DT, robot=robot
-    )
-    prediction, state = model.Predict(
-        model.InitialState(),
-        estimate=estimate,
-        q0=q0,
-        nu0=nu0,
-        warm_start_inputs=inputs,
-    )
-    slot = {int(i): j for j, i in enumerate(prediction.slot_ids)}
-    np.testing.assert_allclose(prediction.preferred_velocities[slot[3]], [0.0, 0.0])
-    np.testing.assert_allclose(prediction.preferred_velocities[slot[4]], [-1.2, 0.0])
-    speeds = np.linalg.norm(prediction.actions[:, slot[3]], axis=-1)
-    assert speeds[-1] < 0.05 and np.all(np.diff(speeds) <= 1e-6)
-    # The filtered preferred velocity (the predictor's state) is kept.
-    np.testing.assert_allclose(state.preferred_velocities[3], [1.4, 0.0])
-
-
-@pytest.mark.parametrize("guard", [True, False])
-def test_without_guard_the_overtaker_is_left_out_of_the_guard(guard):
-    """guard_deviation 0 guards everyone; with overtaking.guard false the
-    person behind the moving robot is left out, the one ahead is not."""
-    robot = MobileManipulator("ridgeback_ur10")
-    config = PredictionConfig(
-        predictor="orca_kkt",
-        max_humans=2,
-        overtaking=OvertakingConfig(enabled=True, wait=True, guard=guard),
-    )
-    model = HumanPredictorModel(
-        config,
-        horizon=N,
-        time_step=DT,
-        control_period=DT,
-        robot=robot,
-        guard_deviation=0.0,
-        guard_hold=0.6,
+        config, horizon=N, time_step=DT, control_period=DT, robot=robot, **guards
     )
     nu0 = np.zeros(robot.num_velocities)
     nu0[0] = 0.3
@@ -154,14 +74,56 @@ def test_without_guard_the_overtaker_is_left_out_of_the_guard(guard):
         positions=[q0[:2] + (-2.5, 0.1), q0[:2] + (3.0, -0.1)],
         velocities=[(1.4, 0.0), (-1.2, 0.0)],
     )
-    prediction, _ = model.Predict(
+    return model.Predict(
         model.InitialState(),
         estimate=estimate,
         q0=q0,
         nu0=nu0,
         warm_start_inputs=np.zeros((N, robot.num_velocities)),
     )
+
+
+def _BySlot(prediction, values):
+    return dict(zip((int(i) for i in prediction.slot_ids), values, strict=True))
+
+
+def test_the_predictor_predicts_the_overtaker_with_the_share():
+    """Through the predictor: the person behind the moving robot gets the
+    share, the one ahead keeps robot_share, and the prediction the MPC's
+    KKT embedding reads carries both."""
+    prediction, _ = _PredictTwo(OvertakingConfig(enabled=True))
+    shares = _BySlot(prediction, prediction.robot_shares)
+    assert shares[3] == pytest.approx(1.0)
+    assert shares[4] == pytest.approx(0.5)
+    # Off (the default): everyone the paper's share.
+    prediction, _ = _PredictTwo()
+    np.testing.assert_allclose(prediction.robot_shares, [0.5, 0.5])
+
+
+def test_with_wait_the_overtaker_is_predicted_to_stop():
+    """With wait the overtaker alone is predicted with v_pref 0 and slows to
+    a stop; the filtered preferred velocity (the predictor's state) is
+    kept."""
+    prediction, state = _PredictTwo(OvertakingConfig(enabled=True, wait=True))
+    preferred = _BySlot(prediction, prediction.preferred_velocities)
+    np.testing.assert_allclose(preferred[3], [0.0, 0.0])
+    np.testing.assert_allclose(preferred[4], [-1.2, 0.0])
+    slot = {int(i): j for j, i in enumerate(prediction.slot_ids)}
+    speeds = np.linalg.norm(prediction.actions[:, slot[3]], axis=-1)
+    assert speeds[-1] < 0.05 and np.all(np.diff(speeds) <= 1e-6)
+    np.testing.assert_allclose(state.preferred_velocities[3], [1.4, 0.0])
+
+
+@pytest.mark.parametrize("guard", [True, False])
+def test_without_guard_the_overtaker_is_left_out_of_the_guard(guard):
+    """guard_deviation 0 guards everyone; with overtaking.guard false the
+    person behind the moving robot is left out, the one ahead is not."""
+    prediction, _ = _PredictTwo(
+        OvertakingConfig(enabled=True, wait=True, guard=guard),
+        guard_deviation=0.0,
+        guard_hold=0.6,
+    )
     assert (3 in prediction.guard_steps_by_id) == guard
     assert 4 in prediction.guard_steps_by_id
-    guarded = dict(zip(prediction.slot_ids, prediction.guarded, strict=True))
+    guarded = _BySlot(prediction, prediction.guarded)
     assert guarded[3] == guard and guarded[4]

@@ -19,7 +19,10 @@ true}``) and ``wait-noguard`` (``{enabled: true, wait: true, guard:
 false}``, `safe` only: `paper` has no guard); and ``others``: the last
 with ORCA and social-force people (``--runs 10 --variant safe,paper
 --people orca,social_force``), against the final re-run's runs on the
-same seeds (``../final-2026-11-28/doorway.csv``). Output: overtaking.txt.
+same seeds (``../final-2026-11-28/doorway.csv``); and the last among ORCA
+people in banner/cup and pick-and-place (``sm2ith experiment STUDY
+--variant safe,paper --people orca --methods SM2ITH``, out
+``overtaking/STUDY``) against the final re-run. Output: overtaking.txt.
 """
 
 from pathlib import Path
@@ -88,6 +91,49 @@ def ByStart(new, default, option):
     return out
 
 
+def OtherStudy(study, path):
+    """SM²ITH with the option (wait, guard false) among ORCA people in
+    ``study`` against its final re-run runs on the same cells and seeds:
+    success, runs with contact and those with the robot closing in."""
+    final = HERE.parent / "final-2026-11-28" / f"{study}.csv"
+
+    def Key(r):
+        return (r["run_id"].split("/")[0], r["variant"], r["seed"])
+
+    def Rows(p):
+        return {
+            Key(r): r
+            for r in ReadRows(p)
+            if (r["people"], r["method"]) == ("orca", "SM2ITH")
+        }
+
+    new, old = Rows(path), Rows(final)
+    lines = [
+        f"{study}, ORCA people, SM2ITH with prediction.overtaking (wait, guard "
+        "false) against the final re-run's runs (success; runs with contact; "
+        "of them with the robot closing in)"
+    ]
+    for variant in ("safe", "paper"):
+        keys = sorted(k for k in new if k[1] == variant and k in old)
+        a = [float(new[k]["success"] is True) for k in keys]
+        b = [float(old[k]["success"] is True) for k in keys]
+        e = PairedDifference(a, b)
+        counts = [
+            (
+                sum(d[k]["collision"] is True for k in keys),
+                sum(d[k]["robot_closing_contact"] is True for k in keys),
+            )
+            for d in (new, old)
+        ]
+        lines.append(
+            f"  {variant:5s} {len(keys)} runs: success {int(sum(a))} vs {int(sum(b))} "
+            f"({e.value:+.2f} [{e.low:+.2f}, {e.high:+.2f}]); contact "
+            f"{counts[0][0]} vs {counts[1][0]}, closing {counts[0][1]} vs "
+            f"{counts[1][1]}"
+        )
+    return lines
+
+
 def main():
     default = Runs(HERE / "doorway.csv")
     lines = []
@@ -117,6 +163,10 @@ def main():
             for variant in ("safe", "paper"):
                 for counts in (COUNTS, *((c,) for c in COUNTS)):
                     lines.append(Compare(new, default, variant, counts))
+    for study in ("banner_cup", "pick_and_place"):
+        path = HERE / "overtaking" / study / f"{study}.csv"
+        if path.exists():
+            lines += OtherStudy(study, path)
     text = "\n".join(lines)
     print(text)
     (HERE / "overtaking.txt").write_text(text + "\n")
