@@ -288,6 +288,7 @@ def _ValidatePeople(scenario: Scenario) -> None:
         _NonNegative(getattr(ov, name), f"prediction.overtaking.{name}")
     s = scenario.safety
     _Within(s.gamma, "(0, 1]", "safety.gamma")
+    _Within(s.guard_gamma, "[0, 1]", "safety.guard_gamma")
     _OneOf(s.mode, ("safe", "paper"), "safety.mode")
     _OneOf(s.inside_barrier, ("decay", "exit"), "safety.inside_barrier")
     _NonNegative(s.guard_steps, "safety.guard_steps")

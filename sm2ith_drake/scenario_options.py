@@ -109,6 +109,12 @@ class SafetyConfig:
     # by up to 2.3 cm. (With predicted people who avoided the base only, 3
     # steps had caused a 31 cm hit in one adversarial run: README.)
     guard_steps: int = 3
+    # The guard rows' own γ (not in the paper; 0: safety.gamma). With 1 a
+    # guard row asks only h ≥ 0 at each guarded step (the person moving on
+    # never within the margin) instead of h decaying no faster than 1 − γ
+    # per step, so it binds near the person rather than at ~1.5 m, where
+    # with γ it has the plan evade a person walking on as CVMM does.
+    guard_gamma: float = 0.0
     # Hold the guard over at least the base's stopping time (not in the
     # paper): max(guard_steps, ⌈stopping time / time_step⌉) steps, where the
     # stopping time is the slowest translational axis's top speed over its

@@ -24,16 +24,19 @@ HORIZON = 3
 STEP = 1e-6
 
 
-def _Controller(inside, positions):
+def _Controller(inside, positions, guard_gamma=0.0):
     """A Stretch 3 among people at ``positions`` (ORCA-KKT slots, the guard
-    on 2 steps) beside a wall, and a perturbed warm start."""
+    on 2 steps, with ``guard_gamma``) beside a wall, and a perturbed warm
+    start."""
     robot = MobileManipulator("stretch3")
     c = MpcController(
         robot,
         [TaskConfig(kind="base_position", target=[2.0, 0.0])],
         ControllerConfig(horizon=HORIZON),
         prediction=PredictionConfig(predictor="orca_kkt", max_humans=len(positions)),
-        safety=SafetyConfig(guard_steps=2, inside_barrier=inside),
+        safety=SafetyConfig(
+            guard_steps=2, inside_barrier=inside, guard_gamma=guard_gamma
+        ),
         obstacles=[ObstacleConfig(vertices=[[-1.0, -0.45], [1.0, -0.45]])],
     )
     q0 = robot.default_q.copy()
@@ -140,6 +143,48 @@ def test_guard_rows_switch_form_inside_the_margin_too():
     # Where the guard's rows differ, exit asks more of the plan (h_k < 0).
     differ = g_e[guard] != g_d[guard]
     assert np.all(g_e[guard][differ] < g_d[guard][differ])
+
+
+def test_guard_gamma_one_asks_only_that_the_guarded_barrier_holds():
+    """safety.guard_gamma: with 1 each guard row reads h_{k+1} of the person
+    moving on at their measured velocity; with the default (safety.gamma)
+    it reads h_{k+1} − (1 − γ) h_k. So with the slacks at 0 the default's
+    rows minus gamma 1's are −(1 − γ) h_k, where h_k (k ≥ 1) is gamma 1's
+    row of the step before; the first rows differ by −(1 − γ) h_0. The
+    people's and walls' rows are the same."""
+    c_d, point, z, targets = _Controller("decay", POSITIONS)
+    c_1, _, _, _ = _Controller("decay", POSITIONS, guard_gamma=1.0)
+    cbf_d, cbf_1 = c_d.program.cbf, c_1.program.cbf
+    assert cbf_1.guard_gamma == 1.0 and cbf_d.guard_gamma == c_d.safety.gamma
+    z = z.copy()
+    z[cbf_d.slack] = 0.0
+    g_d, _ = cbf_d.Eval(c_d.program.MakePoint(z, targets))
+    g_1, _ = cbf_1.Eval(c_1.program.MakePoint(z, targets))
+    main = cbf_d.num_rows - cbf_d.num_guard
+    np.testing.assert_array_equal(g_d[:main], g_1[:main])
+    steps = cbf_d.guard_steps
+    rows_d = g_d[main:].reshape(steps, -1)
+    rows_1 = g_1[main:].reshape(steps, -1)
+    a = 1.0 - c_d.safety.gamma
+    np.testing.assert_allclose(rows_d[1:] - rows_1[1:], -a * rows_1[:-1], atol=1e-12)
+    assert np.all(rows_d[0] != rows_1[0])
+
+
+def test_guard_gamma_rows_have_consistent_jacobians():
+    """The guard rows with guard_gamma 1 against central differences."""
+    c, point, z, targets = _Controller("decay", POSITIONS, guard_gamma=1.0)
+    cbf = c.program.cbf
+    J = cbf.DenseJacobian(cbf.Eval(point)[1], z.size)
+    guard = slice(cbf.num_rows - cbf.num_guard, cbf.num_rows)
+    for i in np.unique(cbf.cols):
+        zp, zm = z.copy(), z.copy()
+        zp[i] += STEP
+        zm[i] -= STEP
+        gp = cbf.Eval(c.program.MakePoint(zp, targets))[0]
+        gm = cbf.Eval(c.program.MakePoint(zm, targets))[0]
+        np.testing.assert_allclose(
+            J[guard, i], (gp - gm)[guard] / (2 * STEP), atol=2e-6
+        )
 
 
 def test_the_scenario_option_reaches_the_barrier_rows():

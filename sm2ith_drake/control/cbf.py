@@ -101,6 +101,7 @@ class DtCbfGroup(ConstraintGroup):
         static_guard_steps=0,
         extra_humans=0,
         inside="decay",
+        guard_gamma=None,
     ):
         if inside not in ("decay", "exit"):
             raise ValueError(f"inside must be 'decay' or 'exit', not {inside!r}")
@@ -115,6 +116,8 @@ class DtCbfGroup(ConstraintGroup):
         S = len(self._segments)
         self._H, self._C, self._S = H, C, S
         self.gamma = float(gamma)
+        # The moving guard's γ (None: gamma).
+        self.guard_gamma = self.gamma if not guard_gamma else float(guard_gamma)
         self._human_offset = robot.capsule_radii[None, :] + human_radius + human_margin
         self._obstacle_offset = robot.capsule_radii[None, :] + obstacle_margin
         self.rows_per_step = (H + S) * C
@@ -237,15 +240,19 @@ class DtCbfGroup(ConstraintGroup):
                     "static": (self.static_p0, np.zeros_like(self.static_p0)),
                     "extra": (self.extra_p0, self.extra_v0),
                 }[which]
-                gi, vi = self._GuardBlock(point, steps, p0, v0, which == "extra")
+                gamma = self.guard_gamma if which == "moving" else self.gamma
+                gi, vi = self._GuardBlock(
+                    point, steps, p0, v0, which == "extra", gamma=gamma
+                )
                 g.append(gi)
                 vals.append(vi)
         return np.concatenate(g), np.concatenate(vals)
 
-    def _GuardBlock(self, point, G, p0, v0, nearest=False):
+    def _GuardBlock(self, point, G, p0, v0, nearest=False, gamma=None):
         """h(q_{k+1}, p0 + (k+1)Δt v0) − (1 − γ) h(q_k, p0 + kΔt v0) for
         k < G, and their q_k, q_{k+1} gradients: per capsule, or with
-        ``nearest`` of the whole robot (the nearest capsule at each knot)."""
+        ``nearest`` of the whole robot (the nearest capsule at each knot);
+        ``gamma`` replaces γ (None: the barrier's)."""
         kin = point.kin
         ends = kin.capsule_points[: G + 1, :, :, :2]  # knots 0 … G
         jac = kin.capsule_jacobians[: G + 1, :, :, :2, :]
@@ -261,24 +268,25 @@ class DtCbfGroup(ConstraintGroup):
             c = np.argmin(h, axis=2)[..., None]  # (G+1, H, 1)
             h = np.take_along_axis(h, c, axis=2)
             dq = np.take_along_axis(dq, c[..., None], axis=2)
-        a = self._Decay(h[:-1])
+        a = self._Decay(h[:-1], gamma)
         g = h[1:] - a * h[:-1]  # (G, H, C or 1)
         a = a[..., None]
         vals = np.concatenate([-a * dq[:-1], dq[1:]], axis=3)  # (G, H, ·, 2n)
         return g.ravel(), vals.ravel()
 
-    def _Decay(self, h):
+    def _Decay(self, h, gamma=None):
         """The factor (1 − γ) of h_k in each row h_{k+1} − (1 − γ) h_k ≥ 0,
         given h_k at the linearization point. With ``inside`` "exit", 0
         where h_k < 0: a row whose barrier is already violated asks for
         h_{k+1} ≥ 0, so its slack measures how deep the plan is at k + 1
         rather than how fast it goes deeper (the rows are the same wherever
         h ≥ 0, so this only changes plans that need slack)."""
+        decay = 1.0 - (self.gamma if gamma is None else gamma)
         if self.inside != "exit":
             # One factor for every row (a 0-d array: it broadcasts as the
             # full one would, without one allocated per evaluation).
-            return np.asarray(1.0 - self.gamma)
-        return np.where(h < 0, 0.0, 1.0 - self.gamma)
+            return np.asarray(decay)
+        return np.where(h < 0, 0.0, decay)
 
     def Barriers(self, point):
         """h at every knot: humans (K, H, C) and obstacles (K, S, C), with

@@ -164,6 +164,7 @@ class MpcProgram:
                 # React), in both safety variants.
                 extra_humans=extras,
                 inside=safety.inside_barrier,
+                guard_gamma=safety.guard_gamma,
             )
             nr = self.cbf.num_rows
             self.extra_constraints.append((self.cbf, np.zeros(nr), np.full(nr, np.inf)))
