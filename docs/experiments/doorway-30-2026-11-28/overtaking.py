@@ -14,15 +14,23 @@ starts (behind the robot, walking the same way, or oncoming).
         --scenario_text '{prediction: {overtaking: {enabled: true}}}'
     python docs/experiments/doorway-30-2026-11-28/overtaking.py
 
-OPTION: ``share`` (the text above), ``wait`` (``{enabled: true, wait:
-true}``) and ``wait-noguard`` (``{enabled: true, wait: true, guard:
-false}``, `safe` only: `paper` has no guard); and ``others``: the last
-with ORCA and social-force people (``--runs 10 --variant safe,paper
---people orca,social_force``), against the final re-run's runs on the
-same seeds (``../final-2026-11-28/doorway.csv``); and the last among ORCA
-people in banner/cup and pick-and-place (``sm2ith experiment STUDY
---variant safe,paper --people orca --methods SM2ITH``, out
-``overtaking/STUDY``) against the final re-run. Output: overtaking.txt.
+OPTION (the directory; its --scenario_text):
+
+- ``share``: ``{prediction: {overtaking: {enabled: true}}}``;
+- ``wait``: ``{prediction: {overtaking: {enabled: true, wait: true}}}``;
+- ``wait-noguard``: ``{..., wait: true, guard: false}``, `safe` only
+  (`paper` has no guard);
+- ``wait-noguard-gamma1``: that and ``{safety: {guard_gamma: 1.0}}``,
+  `safe` only;
+- ``gamma1``: ``{safety: {guard_gamma: 1.0}}`` alone, `safe` only.
+
+``others`` and ``others-gamma1``: wait-noguard and wait-noguard-gamma1
+with ORCA and social-force people (``--runs 10 --people
+orca,social_force``), against the final re-run's runs on the same seeds
+(``../final-2026-11-28/doorway.csv``); ``banner_cup``, ``pick_and_place``
+(and ``-gamma1``): the same among ORCA people in those studies
+(``sm2ith experiment STUDY --people orca --methods SM2ITH``) against the
+final re-run. Output: overtaking.txt.
 """
 
 from pathlib import Path
@@ -31,7 +39,7 @@ from sm2ith_drake.experiments.campaign import ReadRows
 from sm2ith_drake.experiments.statistics import PairedDifference
 
 HERE = Path(__file__).resolve().parent
-OPTIONS = ("share", "wait", "wait-noguard")
+OPTIONS = ("share", "wait", "wait-noguard", "wait-noguard-gamma1", "gamma1")
 METHODS = ("SM2ITH", "CVMM", "React")
 COUNTS = (1, 2, 3, 5)
 
@@ -91,7 +99,7 @@ def ByStart(new, default, option):
     return out
 
 
-def OtherStudy(study, path):
+def OtherStudy(study, path, option):
     """SM²ITH with the option (wait, guard false) among ORCA people in
     ``study`` against its final re-run runs on the same cells and seeds:
     success, runs with contact and those with the robot closing in."""
@@ -109,11 +117,11 @@ def OtherStudy(study, path):
 
     new, old = Rows(path), Rows(final)
     lines = [
-        f"{study}, ORCA people, SM2ITH with prediction.overtaking (wait, guard "
-        "false) against the final re-run's runs (success; runs with contact; "
-        "of them with the robot closing in)"
+        f"{study}, ORCA people, SM2ITH with {option} against the final "
+        "re-run's runs (success; runs with contact; of them with the robot "
+        "closing in)"
     ]
-    for variant in ("safe", "paper"):
+    for variant in sorted({k[1] for k in new}, reverse=True):
         keys = sorted(k for k in new if k[1] == variant and k in old)
         a = [float(new[k]["success"] is True) for k in keys]
         b = [float(old[k]["success"] is True) for k in keys]
@@ -143,30 +151,32 @@ def main():
             continue
         new = Runs(path)
         lines.append(
-            f"prediction.overtaking, {option}: SM2ITH with it (arrivals) against "
-            "each method's default runs (arrivals, paired difference [95 % CI])"
+            f"{option}: SM2ITH with it (arrivals) against each method's default "
+            "runs (arrivals, paired difference [95 % CI])"
         )
         for variant in sorted({k[0] for k in new}, reverse=True):
             for counts in (COUNTS, *((c,) for c in COUNTS)):
                 lines.append(Compare(new, default, variant, counts))
         lines.append("  one person, safe, by where the person starts:")
         lines += ByStart(new, default, option)
-    others = HERE / "overtaking" / "others" / "doorway.csv"
-    if others.exists():
-        final = HERE.parent / "final-2026-11-28" / "doorway.csv"
+    final = HERE.parent / "final-2026-11-28" / "doorway.csv"
+    for suffix, option in (("", "wait-noguard"), ("-gamma1", "wait-noguard-gamma1")):
+        others = HERE / "overtaking" / f"others{suffix}" / "doorway.csv"
+        if not others.exists():
+            continue
         for people in ("orca", "social_force"):
             lines.append(
-                f"prediction.overtaking, wait-noguard, {people} people, 10 seeds per "
-                "count: against the final re-run's runs (final-2026-11-28)"
+                f"{option}, {people} people, 10 seeds per count: against the "
+                "final re-run's runs (final-2026-11-28)"
             )
-            new, default = Runs(others, people), Runs(final, people)
-            for variant in ("safe", "paper"):
+            new, old = Runs(others, people), Runs(final, people)
+            for variant in sorted({k[0] for k in new}, reverse=True):
                 for counts in (COUNTS, *((c,) for c in COUNTS)):
-                    lines.append(Compare(new, default, variant, counts))
-    for study in ("banner_cup", "pick_and_place"):
-        path = HERE / "overtaking" / study / f"{study}.csv"
-        if path.exists():
-            lines += OtherStudy(study, path)
+                    lines.append(Compare(new, old, variant, counts))
+        for study in ("banner_cup", "pick_and_place"):
+            path = HERE / "overtaking" / f"{study}{suffix}" / f"{study}.csv"
+            if path.exists():
+                lines += OtherStudy(study, path, option)
     text = "\n".join(lines)
     print(text)
     (HERE / "overtaking.txt").write_text(text + "\n")
