@@ -15,6 +15,9 @@ which the robot closed in on the person.
             {enabled: true, wait: true, guard: false}}}'
     python docs/experiments/doorway-30-2026-11-28/orca30.py
 
+``orca30-guarded``: the same with ``guard: true`` (overtakers kept in the
+guard, whose rows then ask only h ≥ 0).
+
 Output: orca30.txt.
 """
 
@@ -26,6 +29,14 @@ from sm2ith_drake.experiments.statistics import PairedDifference
 HERE = Path(__file__).resolve().parent / "overtaking"
 METHODS = ("SM2ITH", "CVMM", "React")
 COUNTS = (1, 2, 3, 5)
+# The options' runs (directories under overtaking/) and what they are.
+RUNS = (
+    ("orca30-options", "overtaking (wait, guard false) and guard_gamma 1"),
+    (
+        "orca30-guarded",
+        "overtaking (wait, overtakers kept in the guard) and guard_gamma 1",
+    ),
+)
 
 
 def CI(a, b):
@@ -47,14 +58,23 @@ def main():
         (r["humans"], r["method"], r["seed"]): r
         for r in ReadRows(HERE / "orca30-default" / "doorway.csv")
     }
-    options = {
-        (r["humans"], r["seed"]): r
-        for r in ReadRows(HERE / "orca30-options" / "doorway.csv")
-    }
+    lines = []
+    for name, what in RUNS:
+        path = HERE / name / "doorway.csv"
+        if path.exists():
+            options = {(r["humans"], r["seed"]): r for r in ReadRows(path)}
+            lines += Compare(options, default, what)
+    text = "\n".join(lines)
+    print(text)
+    (HERE.parent / "orca30.txt").write_text(text + "\n")
+
+
+def Compare(options, default, what):
+    """The lines of one option's runs against every method's default."""
     lines = [
-        "Stretch 3 doorway, ORCA people, safe, 30 seeds per count: SM2ITH with "
-        "both options against each method's default (arrivals; runs with "
-        "contact; with the robot closing in); paired differences [95 % CI]"
+        f"Stretch 3 doorway, ORCA people, safe, 30 seeds per count: SM2ITH with "
+        f"{what} against each method's default (arrivals; runs with contact; "
+        "with the robot closing in); paired differences [95 % CI]"
     ]
     for counts in (COUNTS, *((c,) for c in COUNTS)):
         keys = sorted(k for k in options if k[0] in counts)
@@ -79,9 +99,7 @@ def main():
                 f"closing {int(sum(their_closing)):3d} ({CI(closing, their_closing)})"
             )
         lines.append(text)
-    text = "\n".join(lines)
-    print(text)
-    (HERE.parent / "orca30.txt").write_text(text + "\n")
+    return lines
 
 
 if __name__ == "__main__":

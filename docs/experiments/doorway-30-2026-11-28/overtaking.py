@@ -22,7 +22,9 @@ OPTION (the directory; its --scenario_text):
   (`paper` has no guard);
 - ``wait-noguard-gamma1``: that and ``{safety: {guard_gamma: 1.0}}``,
   `safe` only;
-- ``gamma1``: ``{safety: {guard_gamma: 1.0}}`` alone, `safe` only.
+- ``gamma1``: ``{safety: {guard_gamma: 1.0}}`` alone, `safe` only;
+- ``wait-gamma1``: ``wait`` (overtakers kept in the guard) and
+  ``guard_gamma: 1``, `safe` only.
 
 ``others`` and ``others-gamma1``: wait-noguard and wait-noguard-gamma1
 with ORCA and social-force people (``--runs 10 --people
@@ -39,7 +41,14 @@ from sm2ith_drake.experiments.campaign import ReadRows
 from sm2ith_drake.experiments.statistics import PairedDifference
 
 HERE = Path(__file__).resolve().parent
-OPTIONS = ("share", "wait", "wait-noguard", "wait-noguard-gamma1", "gamma1")
+OPTIONS = (
+    "share",
+    "wait",
+    "wait-noguard",
+    "wait-noguard-gamma1",
+    "gamma1",
+    "wait-gamma1",
+)
 METHODS = ("SM2ITH", "CVMM", "React")
 COUNTS = (1, 2, 3, 5)
 
