@@ -116,8 +116,8 @@ class DtCbfGroup(ConstraintGroup):
         S = len(self._segments)
         self._H, self._C, self._S = H, C, S
         self.gamma = float(gamma)
-        # The moving guard's γ (None: gamma).
-        self.guard_gamma = self.gamma if not guard_gamma else float(guard_gamma)
+        # The moving guard's γ (None or 0, SafetyConfig's default: gamma).
+        self.guard_gamma = float(guard_gamma) if guard_gamma else self.gamma
         self._human_offset = robot.capsule_radii[None, :] + human_radius + human_margin
         self._obstacle_offset = robot.capsule_radii[None, :] + obstacle_margin
         self.rows_per_step = (H + S) * C
@@ -240,7 +240,7 @@ class DtCbfGroup(ConstraintGroup):
                     "static": (self.static_p0, np.zeros_like(self.static_p0)),
                     "extra": (self.extra_p0, self.extra_v0),
                 }[which]
-                gamma = self.guard_gamma if which == "moving" else self.gamma
+                gamma = self.guard_gamma if which == "moving" else None
                 gi, vi = self._GuardBlock(
                     point, steps, p0, v0, which == "extra", gamma=gamma
                 )
