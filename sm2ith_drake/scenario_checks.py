@@ -284,6 +284,7 @@ def _ValidatePeople(scenario: Scenario) -> None:
     ov = pr.overtaking
     _Within(ov.share, "[0, 1]", "prediction.overtaking.share")
     _Within(ov.angle, "(0, 90)", "prediction.overtaking.angle")
+    _Within(ov.keep_angle, "[0, 90]", "prediction.overtaking.keep_angle")
     for name in ("min_robot_speed", "min_person_speed"):
         _NonNegative(getattr(ov, name), f"prediction.overtaking.{name}")
     s = scenario.safety

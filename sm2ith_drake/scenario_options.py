@@ -74,13 +74,17 @@ class OvertakingConfig:
     Without ``guard``, the safety guard (SafetyConfig.guard_steps) leaves
     such a person out while the rule applies: the robot, driving away from
     them, does not close in on them, and the guard's constant-velocity rows
-    would have it evade someone it cannot outrun, as CVMM does."""
+    would have it evade someone it cannot outrun, as CVMM does. Once the
+    rule applies to a person it keeps applying while both angles stay
+    within ``keep_angle`` (when wider than ``angle``; 0: no memory), as a
+    person who steps aside to pass is still behind the robot."""
 
     enabled: bool = False
     share: float = 1.0
     wait: bool = False
     guard: bool = True
     angle: float = 45.0
+    keep_angle: float = 0.0
     min_robot_speed: float = 0.05
     # People slower than this (m/s) have no direction of travel.
     min_person_speed: float = 0.1

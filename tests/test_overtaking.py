@@ -54,11 +54,27 @@ def test_only_a_moving_robot_is_overtaken_and_only_active_slots():
     assert _Shares((0.0, -2.0), (0.0, np.nan)) == 0.5
 
 
-def _PredictTwo(overtaking=None, **guards):
+def test_an_overtaker_who_steps_aside_stays_one_with_keep_angle():
+    """A person 51° off the robot's way is not taken in at 45°; with
+    keep_angle 90 they are if the rule applied at the last step, and not
+    once level with the robot or walking away from it."""
+    config = OvertakingConfig(enabled=True, keep_angle=90.0)
+    p = np.array([(2.5, -2.0), (2.5, -2.0), (2.0, 0.0), (0.0, -2.0)])
+    v = np.array([(-1.25, 1.0), (-1.25, 1.0), (0.0, 1.4), (0.0, -1.4)])
+    kept = np.array([False, True, True, True])
+    behind = Overtaking(p, v, [True] * 4, ROBOT_P, ROBOT_V, config, kept=kept)
+    np.testing.assert_array_equal(behind, [False, True, False, False])
+    # keep_angle 0 (the default): no memory.
+    config.keep_angle = 0.0
+    assert not Overtaking(p, v, [True] * 4, ROBOT_P, ROBOT_V, config, kept=kept).any()
+
+
+def _PredictTwo(overtaking=None, state=None, velocity=(1.4, 0.0), **guards):
     """One prediction of two people near a Ridgeback–UR10 driving along +x
     at 0.3 m/s (its heading at default_q): id 3 catching up from behind at
-    1.4 m/s, id 4 coming head-on at 1.2 m/s. Returns the prediction and
-    the predictor's state after it."""
+    ``velocity`` (m/s), id 4 coming head-on at 1.2 m/s, from the
+    predictor's ``state`` (None: the initial one). Returns the prediction
+    and the predictor's state after it."""
     robot = MobileManipulator("ridgeback_ur10")
     config = PredictionConfig(predictor="orca_kkt", max_humans=2)
     if overtaking is not None:
@@ -72,10 +88,10 @@ def _PredictTwo(overtaking=None, **guards):
     estimate = HumanEstimate(
         ids=[3, 4],
         positions=[q0[:2] + (-2.5, 0.1), q0[:2] + (3.0, -0.1)],
-        velocities=[(1.4, 0.0), (-1.2, 0.0)],
+        velocities=[velocity, (-1.2, 0.0)],
     )
     return model.Predict(
-        model.InitialState(),
+        model.InitialState() if state is None else state,
         estimate=estimate,
         q0=q0,
         nu0=nu0,
@@ -127,3 +143,19 @@ def test_without_guard_the_overtaker_is_left_out_of_the_guard(guard):
     assert 4 in prediction.guard_steps_by_id
     guarded = _BySlot(prediction, prediction.guarded)
     assert guarded[3] == guard and guarded[4]
+
+
+def test_the_predictor_remembers_its_overtakers_by_id():
+    """The prediction names the overtaker, and the next step judges them
+    with keep_angle: the person who has turned 51° off the robot's way is
+    still behind it, the one ahead still is not."""
+    config = OvertakingConfig(enabled=True, keep_angle=90.0)
+    prediction, state = _PredictTwo(config)
+    assert _BySlot(prediction, prediction.overtakers) == {3: True, 4: False}
+    # 60° off the robot's way (toward −y): outside 45°, inside 90°.
+    turned = 1.4 * np.array([np.cos(np.radians(60)), -np.sin(np.radians(60))])
+    later, _ = _PredictTwo(config, state=state, velocity=turned)
+    assert _BySlot(later, later.overtakers) == {3: True, 4: False}
+    # Without the memory (a fresh state) the same person is not one.
+    fresh, _ = _PredictTwo(config, velocity=turned)
+    assert _BySlot(fresh, fresh.overtakers) == {3: False, 4: False}

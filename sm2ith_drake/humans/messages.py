@@ -110,6 +110,9 @@ class HumanPrediction:
     # other models; the evidence for the estimate by id ((Σ w·s, Σ w),
     # remembered) and the robot's (q, ν) the prediction was made at.
     robot_shares: np.ndarray | None = None
+    # Slots whose person the overtaking rule applies to (H,) (remembered:
+    # PredictionConfig.overtaking.keep_angle).
+    overtakers: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     share_evidence: dict = field(default_factory=dict)
     robot_state: tuple | None = None
     # Wall time spent making this prediction (s): part of the control step's

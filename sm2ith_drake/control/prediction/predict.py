@@ -177,6 +177,7 @@ class HumanPredictorModel:
                     robot.p[0],
                     robot.v[0],
                     cfg.overtaking,
+                    kept=np.isin(slots.slot_ids, _Overtakers(state.last_prediction)),
                 )
                 shares = np.where(behind, cfg.overtaking.share, shares)
                 if cfg.overtaking.wait:
@@ -224,6 +225,7 @@ class HumanPredictorModel:
             guard_steps_by_id=guards,
             estimate=estimate if estimate is not None else HumanEstimate(),
             robot_shares=shares,
+            overtakers=behind & slots.active,
             share_evidence=evidence,
             robot_state=_RobotState(q0, nu0),
         )
@@ -298,6 +300,14 @@ def _RobotState(q0, nu0):
     if not (np.all(np.isfinite(q)) and np.all(np.isfinite(nu))):
         return None
     return q, nu
+
+
+def _Overtakers(prediction):
+    """The ids of the people the overtaking rule applied to in
+    ``prediction`` (a HumanPrediction or None)."""
+    if prediction is None or len(prediction.overtakers) == 0:
+        return np.zeros(0, dtype=int)
+    return np.asarray(prediction.slot_ids)[np.asarray(prediction.overtakers)]
 
 
 def NextState(prediction: HumanPrediction) -> PredictorState:

@@ -129,20 +129,26 @@ def EstimatedShares(evidence: dict, slot_ids, prior: float, prior_weight: float)
     return shares
 
 
-def Overtaking(positions, preferred, active, robot_p, robot_v, config):
+def Overtaking(positions, preferred, active, robot_p, robot_v, config, kept=None):
     """(H,) whether each active slot's person overtakes the robot: the
     robot's base ``robot_p`` within ``config.angle`` (an OvertakingConfig)
     of the person's direction of travel (``preferred`` (H, 2), faster than
     ``config.min_person_speed``), and the base's velocity ``robot_v``
     (faster than ``config.min_robot_speed``) within ``config.angle`` of the
-    direction away from the person. ``positions`` (H, 2) are the people's."""
+    direction away from the person. ``positions`` (H, 2) are the people's.
+    Slots in ``kept`` (H,) (the people the rule applied to at the last
+    step) are judged with ``config.keep_angle`` instead where it is wider:
+    someone who stepped aside to pass the robot stays behind it."""
     active = np.asarray(active, dtype=bool)
     robot_p = np.asarray(robot_p, dtype=float)[:2]
     robot_v = np.asarray(robot_v, dtype=float)[:2]
     robot_speed = float(np.linalg.norm(robot_v))
     if not (np.isfinite(robot_speed) and robot_speed > config.min_robot_speed):
         return np.zeros(len(active), dtype=bool)
-    cos = np.cos(np.radians(config.angle))
+    angle = np.full(len(active), float(config.angle))
+    if kept is not None:
+        angle = np.where(kept, max(config.angle, config.keep_angle), angle)
+    cos = np.cos(np.radians(angle))
     d = robot_p[None] - np.asarray(positions, dtype=float)
     dist = np.linalg.norm(d, axis=1)
     v = np.asarray(preferred, dtype=float)
