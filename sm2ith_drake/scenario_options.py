@@ -79,12 +79,14 @@ class OvertakingConfig:
     within ``keep_angle`` (when wider than ``angle``; 0: no memory), as a
     person who steps aside to pass is still behind the robot."""
 
-    enabled: bool = False
+    # On by default since 2026-11-28 (README, Doorway): with it SM²ITH's
+    # prediction is no longer the paper's; enabled: false restores it.
+    enabled: bool = True
     share: float = 1.0
-    wait: bool = False
-    guard: bool = True
+    wait: bool = True
+    guard: bool = False
     angle: float = 45.0
-    keep_angle: float = 0.0
+    keep_angle: float = 90.0
     min_robot_speed: float = 0.05
     # People slower than this (m/s) have no direction of travel.
     min_person_speed: float = 0.1
@@ -117,8 +119,9 @@ class SafetyConfig:
     # guard row asks only h ≥ 0 at each guarded step (the person moving on
     # never within the margin) instead of h decaying no faster than 1 − γ
     # per step, so it binds near the person rather than at ~1.5 m, where
-    # with γ it has the plan evade a person walking on as CVMM does.
-    guard_gamma: float = 0.0
+    # with γ it has the plan evade a person walking on as CVMM does. 1 by
+    # default since 2026-11-28 (with prediction.overtaking; README, Doorway).
+    guard_gamma: float = 1.0
     # Hold the guard over at least the base's stopping time (not in the
     # paper): max(guard_steps, ⌈stopping time / time_step⌉) steps, where the
     # stopping time is the slowest translational axis's top speed over its

@@ -9,7 +9,7 @@ from sm2ith_drake.control.prediction.reciprocity import Overtaking
 from sm2ith_drake.humans.messages import HumanEstimate
 from sm2ith_drake.robots import MobileManipulator
 from sm2ith_drake.scenario import PredictionConfig
-from sm2ith_drake.scenario_options import OvertakingConfig
+from sm2ith_drake.scenario_options import OvertakingConfig, SafetyConfig
 
 N, DT = 10, 0.2
 ROBOT_P, ROBOT_V = np.array([0.0, 0.0]), np.array([0.0, 0.3])
@@ -111,9 +111,27 @@ def test_the_predictor_predicts_the_overtaker_with_the_share():
     shares = _BySlot(prediction, prediction.robot_shares)
     assert shares[3] == pytest.approx(1.0)
     assert shares[4] == pytest.approx(0.5)
-    # Off (the default): everyone the paper's share.
-    prediction, _ = _PredictTwo()
+    # Off: everyone the paper's share.
+    prediction, _ = _PredictTwo(OvertakingConfig(enabled=False))
     np.testing.assert_allclose(prediction.robot_shares, [0.5, 0.5])
+    assert not prediction.overtakers.any()
+
+
+def test_the_defaults_are_the_measured_doorway_configuration():
+    """On by default since 2026-11-28 (README, Doorway): overtakers are
+    predicted to take all of the avoidance and wait, left out of the guard,
+    kept while within 90°; the guard's rows ask only h ≥ 0."""
+    config = PredictionConfig()
+    o = config.overtaking
+    assert (o.enabled, o.share, o.wait, o.guard, o.angle, o.keep_angle) == (
+        True,
+        1.0,
+        True,
+        False,
+        45.0,
+        90.0,
+    )
+    assert SafetyConfig().guard_gamma == 1.0
 
 
 def test_with_wait_the_overtaker_is_predicted_to_stop():

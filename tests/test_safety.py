@@ -311,8 +311,9 @@ def test_guard_holds_over_its_steps_against_a_person_who_does_not_yield():
     walking = np.array([-0.6, 0.0])
     person = HumanEstimate(ids=[1], positions=[ahead], velocities=[walking])
 
-    def barrier(guard_steps):
+    def barrier(guard_steps, guard_gamma=0.0):
         safety.guard_steps = guard_steps
+        safety.guard_gamma = guard_gamma  # 0: the barrier's γ
         safety.guard_stopping_time = False  # guard_steps as given
         safety.static_guard_steps = 0  # the moving guard alone
         controller = MpcController(
@@ -343,6 +344,9 @@ def test_guard_holds_over_its_steps_against_a_person_who_does_not_yield():
     h1, _ = barrier(1)
     assert h1[1] >= a * h1[0] - 5e-3
     assert min(h1[2] - a * h1[1], h1[3] - a * h1[2]) < -1e-2
+    # With guard_gamma 1 (the default) the guarded steps keep h ≥ 0 only.
+    h_1, guard_1 = barrier(3, guard_gamma=1.0)
+    assert guard_1.max() < 1e-6 and np.all(h_1[1:4] >= -2e-3), h_1[:4]
 
 
 @pytest.mark.parametrize("predictor", ["cvmm", "orca_kkt"])

@@ -32,6 +32,11 @@ COUNTS = (1, 2, 3, 5)
 # The options' runs (directories under overtaking/) and what they are.
 RUNS = (
     ("orca30-options", "overtaking (wait, guard false) and guard_gamma 1"),
+    ("orca30-wait-noguard", "overtaking (wait, guard false) without guard_gamma"),
+    (
+        "orca30-keep90",
+        "overtaking (wait, guard false, keep_angle 90) and guard_gamma 1",
+    ),
     (
         "orca30-guarded",
         "overtaking (wait, overtakers kept in the guard) and guard_gamma 1",
