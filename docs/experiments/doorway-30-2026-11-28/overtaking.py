@@ -24,7 +24,12 @@ OPTION (the directory; its --scenario_text):
   `safe` only;
 - ``gamma1``: ``{safety: {guard_gamma: 1.0}}`` alone, `safe` only;
 - ``wait-gamma1``: ``wait`` (overtakers kept in the guard) and
-  ``guard_gamma: 1``, `safe` only.
+  ``guard_gamma: 1``, `safe` only;
+- ``keep90``: ``wait-noguard-gamma1`` with ``keep_angle: 90`` (the rule
+  keeps its overtakers while both angles stay within 90°), `safe` only:
+  the defaults since 469abf3;
+- ``default-469abf3``: the defaults of 469abf3 (no --scenario_text),
+  `paper` only.
 
 ``others`` and ``others-gamma1``: wait-noguard and wait-noguard-gamma1
 with ORCA and social-force people (``--runs 10 --people
@@ -48,6 +53,8 @@ OPTIONS = (
     "wait-noguard-gamma1",
     "gamma1",
     "wait-gamma1",
+    "keep90",
+    "default-469abf3",
 )
 METHODS = ("SM2ITH", "CVMM", "React")
 COUNTS = (1, 2, 3, 5)
