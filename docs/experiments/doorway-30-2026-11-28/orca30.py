@@ -38,6 +38,10 @@ RUNS = (
         "overtaking (wait, guard false, keep_angle 90) and guard_gamma 1",
     ),
     (
+        "orca30-keep90-guarded",
+        "the defaults of 469abf3 with the overtakers kept in the guard",
+    ),
+    (
         "orca30-guarded",
         "overtaking (wait, overtakers kept in the guard) and guard_gamma 1",
     ),

@@ -29,7 +29,9 @@ OPTION (the directory; its --scenario_text):
   keeps its overtakers while both angles stay within 90°), `safe` only:
   the defaults since 469abf3;
 - ``default-469abf3``: the defaults of 469abf3 (no --scenario_text),
-  `paper` only.
+  `paper` only;
+- ``keep90-guarded``: the defaults of 469abf3 with the overtakers kept in
+  the guard (``{prediction: {overtaking: {guard: true}}}``), `safe` only.
 
 ``others`` and ``others-gamma1``: wait-noguard and wait-noguard-gamma1
 with ORCA and social-force people (``--runs 10 --people
@@ -55,6 +57,7 @@ OPTIONS = (
     "wait-gamma1",
     "keep90",
     "default-469abf3",
+    "keep90-guarded",
 )
 METHODS = ("SM2ITH", "CVMM", "React")
 COUNTS = (1, 2, 3, 5)
