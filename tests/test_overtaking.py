@@ -59,7 +59,9 @@ def test_an_overtaker_who_steps_aside_stays_one_with_keep_angle():
     keep_angle 90 they are if the rule applied at the last step, and not
     once level with the robot or walking away from it."""
     config = OvertakingConfig(enabled=True, keep_angle=90.0)
-    p = np.array([(2.5, -2.0), (2.5, -2.0), (2.0, 0.0), (0.0, -2.0)])
+    # The third person is just past level with the robot (not on the
+    # 90° boundary itself, where the test would rest on rounding).
+    p = np.array([(2.5, -2.0), (2.5, -2.0), (2.0, 0.1), (0.0, -2.0)])
     v = np.array([(-1.25, 1.0), (-1.25, 1.0), (0.0, 1.4), (0.0, -1.4)])
     kept = np.array([False, True, True, True])
     behind = Overtaking(p, v, [True] * 4, ROBOT_P, ROBOT_V, config, kept=kept)
