@@ -9,7 +9,9 @@ import scipy.sparse as sp
 from pydrake.solvers import ClarabelSolver, MathematicalProgram
 
 from sm2ith_drake.control.piqp_workspace import (
+    INACCURATE_PRIMAL,
     PIQP_DEFAULT_SETTINGS,
+    NearlySolved,
     PiqpBuild,
     PiqpWorkspace,
     _WithoutZeros,
@@ -134,3 +136,86 @@ def test_the_generic_build_is_the_default_and_a_bad_one_is_named():
     assert "instruction_set" not in ws.settings  # not handed to PIQP
     with pytest.raises(UserError, match="instruction_set 'sse9'.*generic"):
         PiqpBuild("sse9")
+
+
+def _RandomQp(rng, settings):
+    """A workspace on a random pattern and one feasible QP on it: (ws, the
+    Solve arguments, the dense P and A)."""
+    p_pattern, a_pattern = _Pattern(rng)
+    ws = PiqpWorkspace(
+        num_variables=N,
+        p_pattern=p_pattern,
+        a_pattern=a_pattern,
+        equality_rows=EQUALITIES,
+        settings=dict(PIQP_DEFAULT_SETTINGS, **settings),
+    )
+    prow, pcol = ws.p_pattern
+    arows, acols = a_pattern
+    a_values = rng.normal(size=arows.size)
+    p_values = np.where(prow == pcol, 2.0 + rng.random(prow.size), 0.1)
+    q = rng.normal(size=N) * 100.0
+    A = sp.coo_matrix((a_values, (arows, acols)), shape=(ROWS, N)).toarray()
+    x0 = rng.normal(size=N)
+    lower, upper = A @ x0 - rng.random(ROWS), A @ x0 + rng.random(ROWS)
+    lower[EQUALITIES] = upper[EQUALITIES] = (A @ x0)[EQUALITIES]
+    args = (p_values, q, a_values, x0 - 1.0, x0 + 1.0, lower, upper)
+    upper_p = sp.coo_matrix((p_values, (prow, pcol)), shape=(N, N)).toarray()
+    return ws, args, upper_p + np.triu(upper_p, 1).T, A
+
+
+# (Seed 2's QP meets even those tolerances: PIQP reports it solved.)
+@pytest.mark.parametrize("seed", [0, 1, 3, 4, 5])
+def test_an_iteration_limit_on_a_converged_iterate_counts_as_solved(seed):
+    """Tolerances PIQP cannot reach make it stop at max_iter on an iterate
+    that is as good as solved: that is "solved_inaccurate" (a success for
+    the stage solvers) and matches Clarabel. Stopped after 2 iterations,
+    far from the optimum, it stays "max_iter_reached"."""
+    unreachable = dict(
+        eps_abs=1e-15,
+        eps_rel=1e-16,
+        eps_duality_gap_abs=1e-16,
+        eps_duality_gap_rel=1e-16,
+    )
+    ws, args, P, A = _RandomQp(
+        np.random.default_rng(seed), dict(unreachable, max_iter=80)
+    )
+    x, status, iterations = ws.Solve(*args)
+    assert (status, iterations) == ("solved_inaccurate", 80)
+    p_values, q, _, x_lower, x_upper, lower, upper = args
+    expected = _Clarabel(P, q, A, x_lower, x_upper, lower, upper)
+    np.testing.assert_allclose(x, expected, atol=1e-5)
+
+    ws, args, _, _ = _RandomQp(np.random.default_rng(seed), dict(max_iter=2))
+    _, status, iterations = ws.Solve(*args)
+    assert (status, iterations) == ("max_iter_reached", 2)
+
+
+def test_nearly_solved_checks_every_constraint_on_the_problems_own_data():
+    class Info:
+        duality_gap_rel = 1e-6
+        dual_res_rel = 1e-8
+
+    A, b = sp.csc_matrix([[1.0, 1.0]]), np.array([1.0])
+    G = sp.csc_matrix([[1.0, -1.0]])
+    h_l, h_u = np.array([-np.inf]), np.array([0.0])
+    x_lower, x_upper = np.array([0.0, 0.0]), np.array([1.0, np.inf])
+    P = sp.identity(2, format="csc")
+    ok = np.array([0.5, 0.5])
+
+    def Check(x, info=Info):
+        return NearlySolved(info, np.asarray(x), P, A, b, G, h_l, h_u, x_lower, x_upper)
+
+    assert Check(ok)
+    off = 10 * INACCURATE_PRIMAL
+    assert not Check(ok + [off, 0.0])  # the equality
+    assert not Check([0.5 + off, 0.5 - off])  # the inequality
+    assert not Check([-off, 1.0 + off])  # a bound
+    assert not Check([np.nan, 0.5])
+
+    class FarGap(Info):
+        duality_gap_rel = 1e-2
+
+    class FarDual(Info):
+        dual_res_rel = 1e-2
+
+    assert not Check(ok, FarGap) and not Check(ok, FarDual)

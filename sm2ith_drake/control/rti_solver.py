@@ -240,7 +240,7 @@ class RtiStageSolver:
             warm_token=warm_token,
             guess=guess,
         )
-        success = status in ("solved",)
+        success = status in ("solved", "solved_inaccurate")
         errors = {}
         if x is not None and np.all(np.isfinite(x)):
             for group in self._lex + [g for g, _ in self._cost]:
