@@ -122,7 +122,8 @@ def test_the_predictor_predicts_the_overtaker_with_the_share():
 def test_the_defaults_are_the_measured_doorway_configuration():
     """On by default since 2026-11-28 (README, Doorway): overtakers are
     predicted to take all of the avoidance and wait, left out of the guard,
-    kept while within 90°; the guard's rows ask only h ≥ 0."""
+    kept while within 90°; the guard's rows ask only h ≥ 0, and it holds
+    everyone measured within 0.2 m of the robot."""
     config = PredictionConfig()
     o = config.overtaking
     assert (o.enabled, o.share, o.wait, o.guard, o.angle, o.keep_angle) == (
@@ -134,6 +135,7 @@ def test_the_defaults_are_the_measured_doorway_configuration():
         90.0,
     )
     assert SafetyConfig().guard_gamma == 1.0
+    assert SafetyConfig().guard_gap == 0.2
 
 
 def test_with_wait_the_overtaker_is_predicted_to_stop():
