@@ -3,12 +3,13 @@ closest approach: the base's position, heading and speed, the gap to
 each person (robot surface to person surface; < 0 is contact), each
 person's speed, and whether the robot's own motion closed the gap.
 
-    python docs/experiments/final-2026-11-28/trace.py RUN_ID [SECONDS]
+    python docs/experiments/final-2026-11-28/trace.py RUN_ID [SECONDS [DIR]]
 
 e.g. RUN_ID doorway_stretch3_2h/safe/orca/SM2ITH/seed4 (a row of this
 directory's CSVs).
 
 SECONDS: how long before and after the closest approach (default 2).
+DIR: the campaign directory whose CSVs hold the run (default this one).
 """
 
 import sys
@@ -89,9 +90,10 @@ def StepText(t, x, P, V, gap, nq, time_now, mode):
     return head, PeopleText(P[i], V[i], gap[i], 2)
 
 
-def main(run_id, window):
+def main(run_id, window, directory=HERE):
     study = next(name for name in STUDIES if run_id.startswith(name))
-    row = next(r for r in ReadRows(HERE / f"{study}.csv") if r["run_id"] == run_id)
+    csv_path = Path(directory) / f"{study}.csv"
+    row = next(r for r in ReadRows(csv_path) if r["run_id"] == run_id)
     scenario = LoadRunScenario(SpecFromRow(STUDIES[study], row))
     slacks = []
     step = mpc_controller.MpcController.Step
@@ -139,4 +141,8 @@ def main(run_id, window):
 
 
 if __name__ == "__main__":
-    main(sys.argv[1], float(sys.argv[2]) if len(sys.argv) > 2 else 2.0)
+    main(
+        sys.argv[1],
+        float(sys.argv[2]) if len(sys.argv) > 2 else 2.0,
+        sys.argv[3] if len(sys.argv) > 3 else HERE,
+    )
