@@ -190,14 +190,11 @@ def test_barrier_holds_among_people_who_walk_as_modelled(name):
     _CheckBarrier(name, 0)
 
 
-# With guard_gamma 1 (the default since 469abf3) this run keeps h ≥ 0.016 at
-# the control instants, as the DT-CBF guarantees, but dips 0.13 mm into a
-# person between them (the margin held it to +1.4 mm with guard_gamma 0).
-KNOWN_DIPS = {
-    ("crossing_ridgeback_ur10_3h", 1): (
-        "469abf3: 0.13 mm between control instants with guard_gamma 1"
-    ),
-}
+# Known dips between control instants (none since e176d82): on 469abf3,
+# crossing_ridgeback_ur10_3h with seed 1 kept h ≥ 0.016 at the control
+# instants but dipped 0.13 mm into a person between them; with guard_gap
+# 0.2 it keeps 23 mm from everyone (h_min −0.0765 against the 0.1 m margin).
+KNOWN_DIPS = {}
 
 
 @pytest.mark.slow
