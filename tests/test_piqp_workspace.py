@@ -36,6 +36,18 @@ def _Pattern(rng):
     return (np.array(prow), np.array(pcol)), (np.array(arows), np.array(acols))
 
 
+def _Workspace(p_pattern, a_pattern, settings):
+    """A PiqpWorkspace on the patterns with PIQP's default settings and
+    ``settings`` over them."""
+    return PiqpWorkspace(
+        num_variables=N,
+        p_pattern=p_pattern,
+        a_pattern=a_pattern,
+        equality_rows=EQUALITIES,
+        settings=dict(PIQP_DEFAULT_SETTINGS, **settings),
+    )
+
+
 def _Clarabel(P, q, A, x_lower, x_upper, lower, upper):
     prog = MathematicalProgram()
     x = prog.NewContinuousVariables(N)
@@ -68,13 +80,10 @@ def test_stored_zeros_do_not_change_the_solution_nor_the_pattern(seed, build):
         pytest.skip(f"PIQP's {build} build does not run on this machine")
     rng = np.random.default_rng(seed)
     p_pattern, a_pattern = _Pattern(rng)
-    ws = PiqpWorkspace(
-        num_variables=N,
-        p_pattern=p_pattern,
-        a_pattern=a_pattern,
-        equality_rows=EQUALITIES,
-        settings=dict(
-            PIQP_DEFAULT_SETTINGS,
+    ws = _Workspace(
+        p_pattern,
+        a_pattern,
+        dict(
             instruction_set=build,
             eps_abs=1e-9,
             eps_rel=1e-10,
@@ -142,13 +151,7 @@ def _RandomQp(rng, settings):
     """A workspace on a random pattern and one feasible QP on it: (ws, the
     Solve arguments, the dense P and A)."""
     p_pattern, a_pattern = _Pattern(rng)
-    ws = PiqpWorkspace(
-        num_variables=N,
-        p_pattern=p_pattern,
-        a_pattern=a_pattern,
-        equality_rows=EQUALITIES,
-        settings=dict(PIQP_DEFAULT_SETTINGS, **settings),
-    )
+    ws = _Workspace(p_pattern, a_pattern, settings)
     prow, pcol = ws.p_pattern
     arows, acols = a_pattern
     a_values = rng.normal(size=arows.size)
