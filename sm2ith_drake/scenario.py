@@ -159,6 +159,13 @@ class ControllerConfig:
     # QPs (SM²ITH): forces of ~1e2 the KKT rows settle from the plan. Off:
     # measured in the doorway, not the default (README, Doorway).
     rti_proximal_multipliers: bool = True
+    # PIQP's stage QPs (rti): a predicted person's DT-CBF rows with a robot
+    # body are left out of the QP where the two are more than this far apart
+    # (m, h at both knots of the row, at the linearization point), and
+    # checked at its solution; rows it violates are put back and the QP
+    # solved again, so the plan is the whole QP's (PiqpWorkspace.Solve).
+    # 0: every row in every QP. HPIPM's QPs always keep every row.
+    lazy_barrier_distance: float = 0.0
     # Slack added to |e*| in the lexicographic constraints (eq. stmpc_lex_constr).
     lexicographic_tolerance: float = 1e-3
     # J_eff = ½ Σ w_ν‖ν_k‖² + w_u‖u_k‖².

@@ -175,6 +175,7 @@ def _ValidateController(scenario: Scenario) -> None:
     for name in (
         "rti_proximal_weight",
         "rti_later_pass_damping",
+        "lazy_barrier_distance",
         "rti_prediction_tolerance",
         "rti_constraint_tolerance",
         "lexicographic_tolerance",

@@ -24,15 +24,16 @@ HORIZON = 3
 STEP = 1e-6
 
 
-def _Controller(inside, positions, guard_gamma=0.0):
+def _Controller(inside, positions, guard_gamma=0.0, config=None):
     """A Stretch 3 among people at ``positions`` (ORCA-KKT slots, the guard
     on 2 steps, with ``guard_gamma``) beside a wall, and a perturbed warm
-    start."""
+    start; ``config``: the ControllerConfig (default: a horizon of
+    HORIZON)."""
     robot = MobileManipulator("stretch3")
     c = MpcController(
         robot,
         [TaskConfig(kind="base_position", target=[2.0, 0.0])],
-        ControllerConfig(horizon=HORIZON),
+        config or ControllerConfig(horizon=HORIZON),
         prediction=PredictionConfig(predictor="orca_kkt", max_humans=len(positions)),
         safety=SafetyConfig(
             guard_steps=2, inside_barrier=inside, guard_gamma=guard_gamma

@@ -323,6 +323,26 @@ class DtCbfGroup(ConstraintGroup):
             dh_dq_obs = np.zeros((K, 0, C, n))
         return h_hum, dh_dq_hum, dh_dp, h_obs, dh_dq_obs
 
+    def FarRows(self, point, distance):
+        """The predicted-human rows whose body and person are more than
+        ``distance`` (m, surface to margin: h) apart at both knots of the row
+        at ``point``; the walls' and guards' rows are never far (they do not
+        couple the people's variables to the robot's)."""
+        if distance <= 0 or self.num_rows == 0 or self._H == 0:
+            return None
+        kin = point.kin
+        ends = kin.capsule_points[..., :2]  # (K, C, 2, 2)
+        A, B = ends[:, None, :, 0], ends[:, None, :, 1]
+        P = point.z[self._P][:, :, None, :]  # (K, H, 1, 2)
+        d, _, _ = point_segment_distance_2d(A, B, P)
+        far = (d - self._human_offset) > distance  # (K, H, C)
+        N = self._layout.N
+        rows = np.zeros((N, self.rows_per_step), dtype=bool)
+        rows[:, : self._H * self._C] = (far[:-1] & far[1:]).reshape(N, -1)
+        mask = np.zeros(self.num_rows, dtype=bool)
+        mask[: N * self.rows_per_step] = rows.ravel()
+        return mask
+
     def Eval(self, point):
         N = self._layout.N
         if self.num_rows == 0:

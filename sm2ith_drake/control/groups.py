@@ -99,6 +99,13 @@ class ConstraintGroup:
         """Returns g(z̄) (num_rows,) and the Jacobian nonzeros (nnz,)."""
         raise NotImplementedError
 
+    def FarRows(self, point: LinearizationPoint, distance: float) -> np.ndarray | None:
+        """The rows (num_rows,) bool that are far from binding at ``point``
+        by ``distance`` in the group's own terms (None: none is). A QP
+        solver may leave them out and check them at its solution
+        (PiqpWorkspace.Solve's ``lazy_rows``)."""
+        return None
+
     def KeepStructuralNonzeros(self, keep: np.ndarray) -> None:
         """Drops the entries of the pattern (``rows``, ``cols``) that are
         zero at every point (``keep`` False; e.g. a joint that does not move

@@ -80,6 +80,7 @@ class HierarchicalSolver:
         rti_warm_start: str = "cold",
         rti_later_pass_damping: float = 1.0,
         qp_solver: str = "piqp",
+        lazy_barrier_distance: float = 0.0,
     ):
         self.program = program
         self.method = method
@@ -106,6 +107,7 @@ class HierarchicalSolver:
                     rti_proximal_weight,
                     qp_solver=qp_solver,
                     hpipm_options=hpipm_options,
+                    lazy_barrier_distance=lazy_barrier_distance,
                 )
                 for s in self.stages
             ]

@@ -118,10 +118,21 @@ class HpipmWorkspace:
         return self._p_rows, self._p_cols
 
     @PROFILER.Timed("hpipm")
-    def Solve(self, p_values, q, a_values, x_lower, x_upper, lower, upper, **start):
+    def Solve(
+        self,
+        p_values,
+        q,
+        a_values,
+        x_lower,
+        x_upper,
+        lower,
+        upper,
+        lazy_rows=None,
+        **start,
+    ):
         """As PiqpWorkspace.Solve. Returns (x, status, iterations).
         ``start``: warm_token, guess (see HpipmStageQp.Solve; PIQP starts
-        cold)."""
+        cold); ``lazy_rows`` are for PIQP (HPIPM solves with every row)."""
         pinned = x_lower == x_upper
         finite = tuple(np.isfinite(v) for v in (x_lower, x_upper, lower, upper))
         key = (pinned.tobytes(),) + tuple(f.tobytes() for f in finite)
@@ -136,7 +147,7 @@ class HpipmWorkspace:
             args = (q, a_values, x_lower, x_upper, lower, upper)
             if structure is _USE_PIQP:
                 piqp, order = self._Piqp()
-                return piqp.Solve(p_values[order], *args)
+                return piqp.Solve(p_values[order], *args, lazy_rows=lazy_rows)
             auto = self._piqp_settings is not None
             try:
                 z, status, iterations = structure.Solve(
@@ -152,7 +163,9 @@ class HpipmWorkspace:
                 # A QP HPIPM's fast mode did not solve (1–3 % with 3 + 7
                 # people): PIQP, cheaper than HPIPM's balanced mode.
                 piqp, order = self._Piqp()
-                z, status, more = piqp.Solve(p_values[order], *args)
+                z, status, more = piqp.Solve(
+                    p_values[order], *args, lazy_rows=lazy_rows
+                )
                 iterations += more
             return z, status, iterations
         except (ValueError, np.linalg.LinAlgError) as e:

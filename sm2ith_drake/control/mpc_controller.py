@@ -201,6 +201,7 @@ class MpcController:
             rti_warm_start=config.rti_warm_start,
             rti_later_pass_damping=config.rti_later_pass_damping,
             qp_solver=config.qp_solver,
+            lazy_barrier_distance=config.lazy_barrier_distance,
         )
         self.safety = safety or SafetyConfig()
         self.period = ControlPeriod(config)

@@ -53,6 +53,7 @@ class RtiStageSolver:
         proximal_weight: float | np.ndarray = 1.0,
         qp_solver: str = "piqp",
         hpipm_options: dict | None = None,
+        lazy_barrier_distance: float = 0.0,
     ):
         self.program = program
         self.stage = stage
@@ -64,6 +65,7 @@ class RtiStageSolver:
         self._lex = self._problem.lexicographic_groups
         self._cost = self._problem.cost_groups
         self._qp_solver = StageQpSolver(qp_solver)
+        self.lazy_barrier_distance = float(lazy_barrier_distance)
         # PIQP's settings (the solver_options entry "PIQP"), and HPIPM's
         # ("HPIPM") for qp_solver hpipm and auto.
         self._settings = dict(PIQP_DEFAULT_SETTINGS)
@@ -165,6 +167,17 @@ class RtiStageSolver:
             _p_diag_index=prow[p_diag],
         )
 
+    def _FarRows(self, group, point, linearizations):
+        """The group's rows the QP may leave out and check at its solution
+        (ConstraintGroup.FarRows at ``lazy_barrier_distance``), once per
+        point."""
+        if self.lazy_barrier_distance <= 0:
+            return None
+        key = ("far", id(group))
+        if key not in linearizations:
+            linearizations[key] = group.FarRows(point, self.lazy_barrier_distance)
+        return linearizations[key]
+
     @PROFILER.Timed("qp_assembly")
     def Solve(
         self,
@@ -217,18 +230,28 @@ class RtiStageSolver:
         qvec += problem.effort_linear
         # Shared constraints (eq. stmpc_sys_consts), then the lexicographic
         # ones (eq. stmpc_lex_constr), both on the linearization J z + c.
-        a_vals, lo, hi = [], [], []
+        a_vals, lo, hi, lazy = [], [], [], []
         for group, glo, ghi in self._shared:
             vals, c = lin(group)
             a_vals.append(vals)
             lo.append(glo - c)
             hi.append(ghi - c)
+            lazy.append(self._FarRows(group, point, linearizations))
         for group in self._lex:
             vals, c = lin(group)
             band_lo, band_hi = LexicographicBand(lex_bounds[group.task.name])
             a_vals.append(vals)
             lo.append(band_lo - c)
             hi.append(band_hi - c)
+            lazy.append(None)
+        lazy_rows = None
+        if any(m is not None and m.any() for m in lazy):
+            lazy_rows = np.concatenate(
+                [
+                    np.zeros(v.size, dtype=bool) if m is None else m
+                    for m, v in zip(lazy, lo, strict=True)
+                ]
+            )
         x, status, iters = self._qp.Solve(
             p_values,
             qvec,
@@ -239,7 +262,16 @@ class RtiStageSolver:
             np.concatenate(hi),
             warm_token=warm_token,
             guess=guess,
+            lazy_rows=lazy_rows,
         )
+        if lazy_rows is not None:
+            # The rows the solve put back stay in the later QPs at this point
+            # (the next stages: their plans are near this one's).
+            offset = 0
+            for m, v in zip(lazy, lo, strict=True):
+                if m is not None:
+                    m &= lazy_rows[offset : offset + v.size]
+                offset += v.size
         success = status in ("solved", "solved_inaccurate")
         errors = {}
         if x is not None and np.all(np.isfinite(x)):
