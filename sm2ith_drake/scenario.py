@@ -164,8 +164,12 @@ class ControllerConfig:
     # (m, h at both knots of the row, at the linearization point), and
     # checked at its solution; rows it violates are put back and the QP
     # solved again, so the plan is the whole QP's (PiqpWorkspace.Solve).
-    # 0: every row in every QP. HPIPM's QPs always keep every row.
-    lazy_barrier_distance: float = 0.0
+    # 0: every row in every QP (the default until 2026-11-29). HPIPM's QPs
+    # always keep every row. Measured (bench, 200 steps, README, Benchmark):
+    # 5 people median 87.4 → 52.7 ms (Ridgeback–UR10), 62.3 → 46.3 ms
+    # (Stretch 3); 10 people 172.0–172.9 → 89.6–90.5 ms and 132.5–133.3 →
+    # 97.0–97.1 ms.
+    lazy_barrier_distance: float = 0.5
     # Slack added to |e*| in the lexicographic constraints (eq. stmpc_lex_constr).
     lexicographic_tolerance: float = 1e-3
     # J_eff = ½ Σ w_ν‖ν_k‖² + w_u‖u_k‖².
@@ -183,6 +187,18 @@ class ControllerConfig:
     # ms per human; not counted in the step time).
     check_predictions: bool = False
     recovery: RecoveryConfig = field(default_factory=RecoveryConfig)
+
+
+# The ControllerConfig fields the HierarchicalSolver takes as they are.
+SOLVER_SETTINGS = (
+    "rti_prediction_tolerance",
+    "rti_constraint_tolerance",
+    "rti_early_pass_check",
+    "rti_warm_start",
+    "rti_later_pass_damping",
+    "qp_solver",
+    "lazy_barrier_distance",
+)
 
 
 HUMAN_BEHAVIORS = (

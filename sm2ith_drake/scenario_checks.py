@@ -30,8 +30,7 @@ from sm2ith_drake.scenario import (
     ScenarioError,
 )
 
-# The target size of each task kind that does not depend on the robot
-# (joint_posture: the number of arm joints).
+# Target sizes that do not depend on the robot (joint_posture's: its arm).
 TASK_TARGET_SIZES = {
     "ee_position": 3,
     "base_position": 2,

@@ -29,7 +29,12 @@ from sm2ith_drake.control.robot_groups import ModelStep
 from sm2ith_drake.control.tasks import MakeTask
 from sm2ith_drake.humans.messages import HumanPrediction, MpcPlan
 from sm2ith_drake.humans.robot_view import HumanDistances
-from sm2ith_drake.scenario import ControllerConfig, ControlPeriod, SafetyConfig
+from sm2ith_drake.scenario import (
+    SOLVER_SETTINGS,
+    ControllerConfig,
+    ControlPeriod,
+    SafetyConfig,
+)
 
 # A replayed plan is consistent while ν is this close to its ν (per entry).
 _PLAN_CONSISTENCY_TOL = 0.05
@@ -195,13 +200,7 @@ class MpcController:
             rti_iterations=config.rti_iterations,
             rti_proximal_weight=config.rti_proximal_weight
             * self.program.ProximalMask(config.rti_proximal_multipliers),
-            rti_prediction_tolerance=config.rti_prediction_tolerance,
-            rti_constraint_tolerance=config.rti_constraint_tolerance,
-            rti_early_pass_check=config.rti_early_pass_check,
-            rti_warm_start=config.rti_warm_start,
-            rti_later_pass_damping=config.rti_later_pass_damping,
-            qp_solver=config.qp_solver,
-            lazy_barrier_distance=config.lazy_barrier_distance,
+            **{name: getattr(config, name) for name in SOLVER_SETTINGS},
         )
         self.safety = safety or SafetyConfig()
         self.period = ControlPeriod(config)
