@@ -118,21 +118,11 @@ class HpipmWorkspace:
         return self._p_rows, self._p_cols
 
     @PROFILER.Timed("hpipm")
-    def Solve(
-        self,
-        p_values,
-        q,
-        a_values,
-        x_lower,
-        x_upper,
-        lower,
-        upper,
-        lazy_rows=None,
-        **start,
-    ):
+    def Solve(self, p_values, q, a_values, x_lower, x_upper, lower, upper, **start):
         """As PiqpWorkspace.Solve. Returns (x, status, iterations).
         ``start``: warm_token, guess (see HpipmStageQp.Solve; PIQP starts
-        cold); ``lazy_rows`` are for PIQP (HPIPM solves with every row)."""
+        cold), lazy_rows (PIQP's only: HPIPM solves with every row)."""
+        lazy_rows = start.pop("lazy_rows", None)
         pinned = x_lower == x_upper
         finite = tuple(np.isfinite(v) for v in (x_lower, x_upper, lower, upper))
         key = (pinned.tobytes(),) + tuple(f.tobytes() for f in finite)
