@@ -101,3 +101,22 @@ def test_the_controller_plans_the_same_with_lazy_rows():
         plans.append(solution)
     np.testing.assert_allclose(plans[1].q, plans[0].q, atol=1e-6)
     np.testing.assert_allclose(plans[1].u, plans[0].u, atol=1e-5)
+
+
+def test_a_qp_not_solved_without_the_lazy_rows_is_solved_with_every_row():
+    """PIQP stopped after 2 iterations fails the QP without its lazy rows;
+    the workspace then solves the whole QP (here: fails it too, with the
+    iterations of both solves counted)."""
+    ws, args, _, _ = _RandomQp(np.random.default_rng(0), dict(max_iter=2))
+    lazy = np.ones(ROWS, dtype=bool)
+    calls = []
+    solve = ws._Solve
+
+    def Spy(*a):
+        calls.append(a[7] if len(a) > 7 else None)
+        return solve(*a)
+
+    ws._Solve = Spy
+    _, status, iterations = ws.Solve(*args, lazy_rows=lazy)
+    assert status == "max_iter_reached" and iterations == 4
+    assert calls[0] is not None and calls[1] is None

@@ -179,7 +179,8 @@ class PiqpWorkspace:
         solution of fewer rows that meets the others is optimal for all of
         them), in less time where the rows left out couple many variables
         (the DT-CBF rows of people far from the robot: PIQP's factorization
-        fills in with each person's rows).
+        fills in with each person's rows). A QP PIQP does not solve without
+        the lazy rows is solved again with every row.
 
         Returns (x, status, iterations); x is None if nothing usable."""
         lazy = None
@@ -198,7 +199,14 @@ class PiqpWorkspace:
             )
             total += iterations
             if x is None or status not in ("solved", "solved_inaccurate"):
-                return x, status, total
+                # PIQP's path depends on the rows: a QP it does not solve
+                # without the lazy rows it may solve with them (measured in
+                # the doorway: 250 iterations without, 42–206 with every
+                # row). The whole QP decides.
+                x, status, iterations = self._Solve(
+                    p_values, q, a_values, x_lower, x_upper, lower, upper
+                )
+                return x, status, total + iterations
             in_lazy = lazy[self._a_rows]
             value = np.bincount(
                 self._a_rows[in_lazy],
