@@ -1,17 +1,17 @@
-"""The Stretch 3 doorway at 30 seeds per count on the controller of effc9d0
+"""The Stretch 3 doorway at 30 seeds per count on the controller of 19b15d2
 (lazy barrier rows in PIQP's QPs, ``controller.lazy_barrier_distance:
 0.5``): e176d82's table (``../e176d82/summary.py``) with SM²ITH's 5-person
 runs, the only ones whose QPs go to PIQP, re-run.
 
-    D=docs/experiments/doorway-30-2026-11-28/effc9d0
+    D=docs/experiments/doorway-30-2026-11-28/19b15d2
     sm2ith experiment doorway --runs 30 --variant safe,paper \\
         --people instructed,orca,social_force --only doorway_stretch3_5h \\
         --methods SM2ITH --jobs 2 --out $D/5p
     python $D/summary.py
 
 CVMM's and React's QPs stay with HPIPM at 5 people (their people are not
-variables); the final re-run on effc9d0 re-ran them at 10 seeds and
-compares them with e176d82's (``../../final-effc9d0/compare.txt``).
+variables); the final re-run on 19b15d2 re-ran them at 10 seeds and
+compares them with e176d82's (``../../final-19b15d2/compare.txt``).
 Output: summary.txt.
 """
 
