@@ -180,7 +180,8 @@ class PiqpWorkspace:
         them), in less time where the rows left out couple many variables
         (the DT-CBF rows of people far from the robot: PIQP's factorization
         fills in with each person's rows). A QP PIQP does not solve without
-        the lazy rows is solved again with every row.
+        the lazy rows is solved again with every row. An updated workspace
+        (``reuse_workspace``) needs the fixed pattern: it keeps every row.
 
         Returns (x, status, iterations); x is None if nothing usable."""
         lazy = None
