@@ -292,12 +292,8 @@ class DtCbfGroup(ConstraintGroup):
         """h at every knot: humans (K, H, C) and obstacles (K, S, C), with
         their gradients w.r.t. q (K, ·, C, n) and the human positions
         (K, H, C, 2)."""
-        kin = point.kin
-        ends = kin.capsule_points[..., :2]  # (K, C, 2, 2)
-        jac = kin.capsule_jacobians[..., :2, :]  # (K, C, 2, 2, n)
-        A, B = ends[:, None, :, 0], ends[:, None, :, 1]  # (K, 1, C, 2)
-        P = point.z[self._P][:, :, None, :]  # (K, H, 1, 2)
-        d, s, nrm = point_segment_distance_2d(A, B, P)  # (K, H, C)
+        jac = point.kin.capsule_jacobians[..., :2, :]  # (K, C, 2, 2, n)
+        A, B, (d, s, nrm) = self._HumanDistances(point)  # d: (K, H, C)
         h_hum = d - self._human_offset
         JA, JB = jac[:, None, :, 0], jac[:, None, :, 1]  # (K, 1, C, 2, n)
         Jc = (1 - s)[..., None, None] * JA + s[..., None, None] * JB
@@ -323,6 +319,15 @@ class DtCbfGroup(ConstraintGroup):
             dh_dq_obs = np.zeros((K, 0, C, n))
         return h_hum, dh_dq_hum, dh_dp, h_obs, dh_dq_obs
 
+    def _HumanDistances(self, point):
+        """The capsules' floor-plane axes A, B (K, 1, C, 2) and
+        point_segment_distance_2d of every predicted human to them (d, s,
+        n: (K, H, C) …)."""
+        ends = point.kin.capsule_points[..., :2]  # (K, C, 2, 2)
+        A, B = ends[:, None, :, 0], ends[:, None, :, 1]
+        P = point.z[self._P][:, :, None, :]  # (K, H, 1, 2)
+        return A, B, point_segment_distance_2d(A, B, P)
+
     def FarRows(self, point, distance):
         """The predicted-human rows whose body and person are more than
         ``distance`` (m, surface to margin: h) apart at both knots of the row
@@ -330,11 +335,7 @@ class DtCbfGroup(ConstraintGroup):
         couple the people's variables to the robot's)."""
         if distance <= 0 or self.num_rows == 0 or self._H == 0:
             return None
-        kin = point.kin
-        ends = kin.capsule_points[..., :2]  # (K, C, 2, 2)
-        A, B = ends[:, None, :, 0], ends[:, None, :, 1]
-        P = point.z[self._P][:, :, None, :]  # (K, H, 1, 2)
-        d, _, _ = point_segment_distance_2d(A, B, P)
+        d = self._HumanDistances(point)[2][0]
         far = (d - self._human_offset) > distance  # (K, H, C)
         N = self._layout.N
         rows = np.zeros((N, self.rows_per_step), dtype=bool)

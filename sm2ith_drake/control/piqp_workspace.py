@@ -70,13 +70,24 @@ def PiqpBuild(instruction_set: str):
         ) from e
 
 
+def _Entries(M: sp.csc_matrix, keep, rows, shape) -> sp.csc_matrix:
+    """The stored entries ``keep`` (bool, per entry) of ``M`` with row
+    indices ``rows`` (per entry), as a ``shape`` matrix in new arrays."""
+    kept_before = np.concatenate([[0], np.cumsum(keep)])
+    indptr = kept_before[M.indptr].astype(M.indptr.dtype)
+    return sp.csc_matrix((M.data[keep], rows[keep], indptr), shape)
+
+
 def _WithoutZeros(M: sp.csc_matrix) -> sp.csc_matrix:
     """``M`` without its stored zeros, in new arrays (``M`` shares its index
     arrays with the workspace's pattern, which must stay whole)."""
-    keep = M.data != 0
-    kept_before = np.concatenate([[0], np.cumsum(keep)])
-    indptr = kept_before[M.indptr].astype(M.indptr.dtype)
-    return sp.csc_matrix((M.data[keep], M.indices[keep], indptr), M.shape)
+    return _Entries(M, M.data != 0, M.indices, M.shape)
+
+
+def _RowsOf(M: sp.csc_matrix, kept: np.ndarray) -> sp.csc_matrix:
+    """The rows ``kept`` (bool) of ``M``, in new arrays."""
+    row = (np.cumsum(kept) - 1).astype(M.indices.dtype)
+    return _Entries(M, kept[M.indices], row[M.indices], (int(kept.sum()), M.shape[1]))
 
 
 class PiqpWorkspace:
@@ -190,24 +201,21 @@ class PiqpWorkspace:
             lazy[self._eq_rows] = False
         total = 0
         for round_ in range(LAZY_ROUNDS + 1):
-            if lazy is None or not lazy.any() or round_ == LAZY_ROUNDS:
-                x, status, iterations = self._Solve(
-                    p_values, q, a_values, x_lower, x_upper, lower, upper
-                )
-                return x, status, total + iterations
+            if lazy is not None and (not lazy.any() or round_ == LAZY_ROUNDS):
+                lazy = None  # every row
             x, status, iterations = self._Solve(
                 p_values, q, a_values, x_lower, x_upper, lower, upper, lazy
             )
             total += iterations
+            if lazy is None:
+                return x, status, total
             if x is None or status not in ("solved", "solved_inaccurate"):
                 # PIQP's path depends on the rows: a QP it does not solve
                 # without the lazy rows it may solve with them (measured in
                 # the doorway: 250 iterations without, 42–206 with every
-                # row). The whole QP decides.
-                x, status, iterations = self._Solve(
-                    p_values, q, a_values, x_lower, x_upper, lower, upper
-                )
-                return x, status, total + iterations
+                # row). The whole QP decides, in the next round.
+                lazy = None
+                continue
             in_lazy = lazy[self._a_rows]
             value = np.bincount(
                 self._a_rows[in_lazy],
@@ -294,18 +302,8 @@ class PiqpWorkspace:
 # PIQP's 1e-6, closing slowly under the walls' slack weight (1e6 per
 # metre); the step braked although its plan was as good as solved.
 INACCURATE_PRIMAL = 1e-6
-
-
-def _RowsOf(M: sp.csc_matrix, kept: np.ndarray) -> sp.csc_matrix:
-    """The rows ``kept`` (bool) of ``M``, in new arrays."""
-    keep = kept[M.indices]
-    kept_before = np.concatenate([[0], np.cumsum(keep)])
-    indptr = kept_before[M.indptr].astype(M.indptr.dtype)
-    row = (np.cumsum(kept) - 1).astype(M.indices.dtype)
-    return sp.csc_matrix(
-        (M.data[keep], row[M.indices[keep]], indptr), (int(kept.sum()), M.shape[1])
-    )
-
+INACCURATE_GAP = 1e-4
+INACCURATE_DUAL = 1e-5
 
 # How often PiqpWorkspace.Solve puts back lazy rows its solution violates
 # before it solves with every row.
@@ -313,8 +311,6 @@ LAZY_ROUNDS = 2
 # The rows put back with a violated lazy row: those within this of their
 # bounds at the solution (in the rows' units; the DT-CBF's: m).
 LAZY_MARGIN = 0.05
-INACCURATE_GAP = 1e-4
-INACCURATE_DUAL = 1e-5
 
 
 def NearlySolved(info, x, P, A, b, G, h_l, h_u, x_lower, x_upper) -> bool:
