@@ -193,6 +193,26 @@ BAD_INPUTS = [
      "humans: [{behavior: orca, start: [3, 3], waypoints: [[3, -3], [3, 3]], "
      "waypoint_phases: ['', cross]}]}",
      ["humans[0].waypoint_phases[1]", "'cross'", "valid: 'go', 'back'"]),
+    # Solver settings: PIQP took a bad one at every solve (every step
+    # failed), HPIPM exited the process on a name it does not know.
+    ("piqp_unknown_setting", "stretch3_reach",
+     "{controller: {solver_options: {options: {PIQP: {eps_absolute: 1.0e-5}}}}}",
+     ["PIQP setting 'eps_absolute'", "no such setting"]),
+    ("piqp_setting_wrong_type", "stretch3_reach",
+     "{controller: {solver_options: {options: {PIQP: {max_iter: many}}}}}",
+     ["PIQP setting 'max_iter'", "'many'", "whole number"]),
+    ("piqp_unknown_kkt_solver", "stretch3_reach",
+     "{controller: {solver_options: {options: {PIQP: {kkt_solver: fast}}}}}",
+     ["PIQP kkt_solver 'fast'", "sparse_ldlt"]),
+    ("hpipm_unknown_setting", "stretch3_reach",
+     "{controller: {solver_options: {options: {HPIPM: {tolerance: 1.0e-6}}}}}",
+     ["HPIPM setting 'tolerance'", "tol_stat"]),
+    ("hpipm_iter_max_not_whole", "stretch3_reach",
+     "{controller: {solver_options: {options: {HPIPM: {iter_max: 2.5}}}}}",
+     ["HPIPM setting 'iter_max'", "whole number"]),
+    ("hpipm_unknown_mode", "stretch3_reach",
+     "{controller: {solver_options: {options: {HPIPM: {mode: fastest}}}}}",
+     ["HPIPM mode 'fastest'", "speed_abs"]),
 ]  # fmt: skip
 
 

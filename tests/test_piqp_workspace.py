@@ -8,9 +8,11 @@ import pytest
 import scipy.sparse as sp
 from pydrake.solvers import ClarabelSolver, MathematicalProgram
 
+from sm2ith_drake.control.hpipm_workspace import CheckHpipmSettings
 from sm2ith_drake.control.piqp_workspace import (
     INACCURATE_PRIMAL,
     PIQP_DEFAULT_SETTINGS,
+    CheckPiqpSettings,
     NearlySolved,
     PiqpBuild,
     PiqpWorkspace,
@@ -222,3 +224,23 @@ def test_nearly_solved_checks_every_constraint_on_the_problems_own_data():
         dual_res_rel = 1e-2
 
     assert not Check(ok, FarGap) and not Check(ok, FarDual)
+
+
+def test_solver_settings_read_as_text_become_numbers():
+    """YAML 1.1 reads 1e-4 (no decimal point) as text: the settings check
+    turns it into the number PIQP and HPIPM take, by each setting's type."""
+    checked = CheckPiqpSettings({"eps_abs": "1e-4", "max_iter": 40, "verbose": False})
+    assert checked == {"eps_abs": 1e-4, "max_iter": 40, "verbose": False}
+    assert isinstance(checked["eps_abs"], float)
+    hpipm = CheckHpipmSettings(
+        {"mu0": 10000, "iter_max": "30", "warm_start": True, "auto_max_work": "6e6"}
+    )
+    assert hpipm == {
+        "mu0": 10000.0,
+        "iter_max": 30,
+        "warm_start": 1,
+        "auto_max_work": 6e6,
+    }
+    assert isinstance(hpipm["mu0"], float) and isinstance(hpipm["iter_max"], int)
+    with pytest.raises(UserError, match="not a finite number"):
+        CheckHpipmSettings({"tol_stat": float("nan")})

@@ -23,6 +23,25 @@ from sm2ith_drake.errors import UserError
 
 # HPIPM's modes (enum hpipm_mode).
 MODES = {"speed_abs": 0, "speed": 1, "balance": 2, "robust": 3}
+# HPIPM's IPM arguments by name, with the C type each takes (HPIPM's
+# d_ocp_qp_ipm_arg_set exits the process on a name it does not know).
+IPM_ARGUMENTS = {
+    **dict.fromkeys(
+        (
+            "iter_max warm_start pred_corr cond_pred_corr ric_alg comp_dual_sol_eq "
+            "comp_res_exit comp_res_pred split_step var_init_scheme t_lam_min "
+            "t0_init update_fact_exit"
+        ).split(),
+        int,
+    ),
+    **dict.fromkeys(
+        (
+            "alpha_min mu0 tol_stat tol_eq tol_ineq tol_comp tol_dual_gap reg_prim "
+            "lam_min t_min tau_min lam0_min t0_min"
+        ).split(),
+        float,
+    ),
+}
 # HPIPM's exit status codes.
 STATUS = {0: "solved", 1: "max_iter_reached", 2: "min_step", 3: "nan"}
 
@@ -154,6 +173,47 @@ def _CallLoops():
     return SetAll, GetAll, PutAll
 
 
+def CheckIpmArguments(settings: dict) -> dict:
+    """``settings`` (HPIPM's IPM arguments by name, and ``mode``) as the
+    types HPIPM takes: a number YAML read as text ("1e-4") becomes a number.
+    Raises UserError on a name HPIPM does not have or a value that is not a
+    number of its type."""
+    checked = {}
+    for key, value in settings.items():
+        if key == "mode":
+            if value not in MODES:
+                raise UserError(f"HPIPM mode {value!r}: one of {', '.join(MODES)}")
+            checked[key] = value
+            continue
+        kind = IPM_ARGUMENTS.get(key)
+        if kind is None:
+            raise UserError(
+                f"HPIPM setting {key!r}: not an HPIPM IPM argument (one of "
+                f"mode, {', '.join(sorted(IPM_ARGUMENTS))})"
+            )
+        checked[key] = Number(f"HPIPM setting {key!r}", value, kind)
+    return checked
+
+
+def Number(what: str, value, kind: type):
+    """``value`` as a ``kind`` (int or float), from a number or its text."""
+    if isinstance(value, bool):
+        if kind is int:  # (e.g. warm_start: true)
+            return int(value)
+        raise UserError(f"{what}: {value!r} is not a number")
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        number = None
+    if number is None or not np.isfinite(number):
+        raise UserError(f"{what}: {value!r} is not a finite number")
+    if kind is int:
+        if number != int(number):
+            raise UserError(f"{what}: {value!r} is not a whole number")
+        return int(number)
+    return number
+
+
 def Compile() -> None:
     """Compiles the call loops (once per process), ahead of a controller's
     first step."""
@@ -225,11 +285,10 @@ class OcpQp:
         return arg, arg_mem, ws, ws_mem
 
     def _SetArgument(self, arg, key: str, value) -> None:
-        """An IPM argument by HPIPM's name (iter_max, mu0, tol_stat, ...)."""
-        if isinstance(value, bool) or isinstance(value, int | np.integer):
-            c_value = ctypes.c_int(int(value))
-        else:
-            c_value = ctypes.c_double(float(value))
+        """An IPM argument by HPIPM's name (iter_max, mu0, tol_stat, ...;
+        see CheckIpmArguments)."""
+        kind = IPM_ARGUMENTS[key]
+        c_value = ctypes.c_int(value) if kind is int else ctypes.c_double(value)
         self.lib.d_ocp_qp_ipm_arg_set(key.encode(), ctypes.byref(c_value), arg)
 
     def Setter(self, field: str):

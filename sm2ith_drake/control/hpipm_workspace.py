@@ -63,6 +63,21 @@ HPIPM_DEFAULT_SETTINGS = dict(
     # ~1.2–1.5e7 (5) and far slower at ~7.5e7 (10).
     auto_max_work=6e6,
 )
+# The settings above that are ours, not HPIPM's.
+_OWN_SETTINGS = ("equality_relaxation", "auto_max_work")
+
+
+def CheckHpipmSettings(settings: dict) -> dict:
+    """The solver_options entry "HPIPM" checked (HPIPM's IPM arguments,
+    ``mode`` and ours above): numbers YAML read as text become numbers;
+    UserError on an unknown name or a value that is not a number."""
+    checked = hpipm_library.CheckIpmArguments(
+        {k: v for k, v in settings.items() if k not in _OWN_SETTINGS}
+    )
+    for key in _OWN_SETTINGS:
+        if key in settings:
+            checked[key] = hpipm_library.Number(f"HPIPM {key}", settings[key], float)
+    return checked
 
 
 class HpipmWorkspace:

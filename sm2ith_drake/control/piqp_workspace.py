@@ -70,6 +70,43 @@ def PiqpBuild(instruction_set: str):
         ) from e
 
 
+def CheckPiqpSettings(settings: dict) -> dict:
+    """The solver_options entry "PIQP" (PIQP's settings by name, and
+    ``instruction_set``) checked against PIQP's own Settings: a number YAML
+    read as text ("1e-4") becomes a number. UserError on a name PIQP does
+    not have or a value of the wrong type (PIQP would reject it at every
+    solve, and every step would fail)."""
+    checked = dict(settings)
+    build = PiqpBuild(checked.get("instruction_set", "generic"))
+    probe = build.SparseSolver().settings
+    for key, value in settings.items():
+        if key == "instruction_set":
+            continue
+        if key.startswith("_") or not hasattr(probe, key):
+            raise UserError(f"PIQP setting {key!r}: PIQP has no such setting")
+        if key == "kkt_solver":
+            if not isinstance(value, str) or not hasattr(build.KKTSolver, value):
+                names = [k for k in dir(build.KKTSolver) if not k.startswith("_")]
+                names = [k for k in names if k not in ("name", "value")]
+                raise UserError(f"PIQP kkt_solver {value!r}: one of {', '.join(names)}")
+            continue
+        default = getattr(probe, key)
+        if isinstance(value, str) and isinstance(default, float):
+            try:
+                value = float(value)
+            except ValueError:
+                pass
+        try:
+            setattr(probe, key, value)
+        except TypeError:
+            kind = {bool: "true or false", int: "a whole number"}.get(
+                type(default), "a number"
+            )
+            raise UserError(f"PIQP setting {key!r}: {value!r} is not {kind}") from None
+        checked[key] = value
+    return checked
+
+
 def _Entries(M: sp.csc_matrix, keep, rows, shape) -> sp.csc_matrix:
     """The stored entries ``keep`` (bool, per entry) of ``M`` with row
     indices ``rows`` (per entry), as a ``shape`` matrix in new arrays."""

@@ -16,8 +16,12 @@ import scipy.sparse as sp
 
 from sm2ith_drake.control.groups import ConstraintGroup
 from sm2ith_drake.control.hpipm_library import Library, StageQpSolver
-from sm2ith_drake.control.hpipm_workspace import HpipmWorkspace
-from sm2ith_drake.control.piqp_workspace import PIQP_DEFAULT_SETTINGS, PiqpWorkspace
+from sm2ith_drake.control.hpipm_workspace import CheckHpipmSettings, HpipmWorkspace
+from sm2ith_drake.control.piqp_workspace import (
+    PIQP_DEFAULT_SETTINGS,
+    CheckPiqpSettings,
+    PiqpWorkspace,
+)
 from sm2ith_drake.control.profiling import PROFILER
 from sm2ith_drake.control.program import MpcProgram
 from sm2ith_drake.control.stage_problem import (
@@ -70,12 +74,13 @@ class RtiStageSolver:
         # ("HPIPM") for qp_solver hpipm and auto.
         self._settings = dict(PIQP_DEFAULT_SETTINGS)
         self._settings.update(qp_options)
-        self._hpipm_settings = dict(hpipm_options or {})
+        self._hpipm_settings = CheckHpipmSettings(hpipm_options or {})
         if qp_solver == "hpipm":
             Library()  # HpipmUnavailable, with what to install, if missing
         # Not a PIQP setting: whether to update one PIQP workspace instead of
         # setting one up per solve (PiqpWorkspace; off: reproducible runs).
         self._reuse_workspace = bool(self._settings.pop("reuse_workspace", False))
+        self._settings = CheckPiqpSettings(self._settings)
         # Built structures (QP workspace and index maps) by sparsity pattern:
         # the pattern changes only when the predictor's neighbour sets do, and
         # a few recent ones are kept so sets that switch back cost nothing.
