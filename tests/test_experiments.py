@@ -316,6 +316,13 @@ def test_mini_campaign_end_to_end(tmp_path):
     typo = _cli(*args, "--scenario_text", "{safety: {gard_gap: 0.1}}", cwd=tmp_path)
     assert typo.returncode == 2 and "--scenario_text" in typo.stderr
     assert "gard_gap" in typo.stderr
+    solver = _cli(
+        *args,
+        "--scenario_text",
+        "{controller: {solver_options: {options: {PIQP: {eps_absolute: 1.0e-5}}}}}",
+        cwd=tmp_path,
+    )
+    assert solver.returncode == 2 and "PIQP setting 'eps_absolute'" in solver.stderr
     assert len(ReadRows(out / "adversarial.csv")) == 2
 
 

@@ -97,16 +97,13 @@ class HierarchicalSolver:
         self.stages = MakeStages(program.tasks, method)
         options = solver_options if solver_options is not None else SolverOptions()
         if solver == "rti":
-            qp_options = dict(options.options.get("PIQP", {}))
-            hpipm_options = dict(options.options.get("HPIPM", {}))
             self.stage_solvers = [
                 RtiStageSolver(
                     program,
                     s,
-                    qp_options,
+                    options,
                     rti_proximal_weight,
                     qp_solver=qp_solver,
-                    hpipm_options=hpipm_options,
                     lazy_barrier_distance=lazy_barrier_distance,
                 )
                 for s in self.stages

@@ -36,6 +36,19 @@ from sm2ith_drake.control.stage_problem import (
 _MAX_STRUCTURES = 4
 
 
+def QpSettings(solver_options) -> tuple[dict, dict]:
+    """The rti QPs' settings from Drake SolverOptions (its entries "PIQP"
+    and "HPIPM"), checked: (PIQP's over PIQP_DEFAULT_SETTINGS, with our
+    ``reuse_workspace``; HPIPM's as given). Raises UserError naming a
+    setting the solver does not take (see CheckPiqpSettings)."""
+    options = solver_options.options
+    piqp = dict(PIQP_DEFAULT_SETTINGS, **options.get("PIQP", {}))
+    reuse = piqp.pop("reuse_workspace", False)
+    piqp = CheckPiqpSettings(piqp)
+    piqp["reuse_workspace"] = bool(reuse)
+    return piqp, CheckHpipmSettings(options.get("HPIPM", {}))
+
+
 def _Linearize(group: ConstraintGroup, point, num_variables):
     with PROFILER.Phase("linearize", group.name):
         g, vals = group.Eval(point)
@@ -53,10 +66,9 @@ class RtiStageSolver:
         self,
         program: MpcProgram,
         stage: Stage,
-        qp_options: dict,
+        solver_options,
         proximal_weight: float | np.ndarray = 1.0,
         qp_solver: str = "piqp",
-        hpipm_options: dict | None = None,
         lazy_barrier_distance: float = 0.0,
     ):
         self.program = program
@@ -72,15 +84,12 @@ class RtiStageSolver:
         self.lazy_barrier_distance = float(lazy_barrier_distance)
         # PIQP's settings (the solver_options entry "PIQP"), and HPIPM's
         # ("HPIPM") for qp_solver hpipm and auto.
-        self._settings = dict(PIQP_DEFAULT_SETTINGS)
-        self._settings.update(qp_options)
-        self._hpipm_settings = CheckHpipmSettings(hpipm_options or {})
+        self._settings, self._hpipm_settings = QpSettings(solver_options)
         if qp_solver == "hpipm":
             Library()  # HpipmUnavailable, with what to install, if missing
         # Not a PIQP setting: whether to update one PIQP workspace instead of
         # setting one up per solve (PiqpWorkspace; off: reproducible runs).
-        self._reuse_workspace = bool(self._settings.pop("reuse_workspace", False))
-        self._settings = CheckPiqpSettings(self._settings)
+        self._reuse_workspace = bool(self._settings.pop("reuse_workspace"))
         # Built structures (QP workspace and index maps) by sparsity pattern:
         # the pattern changes only when the predictor's neighbour sets do, and
         # a few recent ones are kept so sets that switch back cost nothing.

@@ -28,6 +28,7 @@ import numpy as np
 import yaml
 from tqdm import tqdm
 
+from sm2ith_drake.control.rti_solver import QpSettings
 from sm2ith_drake.experiments.findings import WriteFindings
 from sm2ith_drake.experiments.people import (
     AS_SCENARIO,
@@ -238,8 +239,9 @@ def RunCampaign(
         raise ValueError(f"no runs in study '{study.name}' match --only {only!r}")
     if scenario_text:
         try:  # a bad override is refused before any run
-            LoadRunScenario(specs[0])
-        except Exception as e:  # noqa: BLE001 (ScenarioError, YAML errors)
+            scenario = LoadRunScenario(specs[0])
+            QpSettings(scenario.controller.solver_options)
+        except Exception as e:  # noqa: BLE001 (ScenarioError, UserError, YAML)
             raise ValueError(f"--scenario_text: {e}") from e
     _CsvColumns(csv_path)  # a foreign CSV is refused before any run
     done = {r["run_id"]: r for r in ReadRows(csv_path) if r.get("status") == "ok"}
