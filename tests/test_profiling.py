@@ -160,3 +160,29 @@ def test_bench_cli_prints_and_writes_the_profile(tmp_path, capsys):
     data = json.loads(out.read_text())
     assert QP_PHASES[data["qp_solver"]][-1] in printed and OTHER in printed
     assert STEP in data["profile"] and "setup_ms" in data and "p99_ms" in data
+
+
+def test_bench_cli_repeats_in_rounds_and_prints_the_spread(tmp_path, capsys):
+    out = tmp_path / "bench.json"
+    argv = ["bench", "--robot", "all", "--humans", "1", "--steps", "2"]
+    assert main(argv + ["--repeat", "2", "--json", str(out)]) == 0
+    printed = capsys.readouterr().out
+    data = json.loads(out.read_text())
+    assert [(r["robot"], r["run"]) for r in data] == [
+        ("ridgeback_ur10", 1),
+        ("stretch3", 1),
+        ("ridgeback_ur10", 2),
+        ("stretch3", 2),
+    ]
+    for robot in ("ridgeback_ur10", "stretch3"):
+        runs = [r for r in data if r["robot"] == robot]
+        low = min(r["median_ms"] for r in runs)
+        high = max(r["median_ms"] for r in runs)
+        line = next(
+            x
+            for x in printed.splitlines()
+            if x.startswith(f"{robot} ") and "over 2 runs" in x
+        )
+        assert f"median {low:.1f}–{high:.1f} ms" in line
+        assert "the same plans" in line  # the runs are deterministic
+    assert main(["bench", "--repeat", "0"]) == 2

@@ -6,43 +6,81 @@ import json
 from pathlib import Path
 
 from sm2ith_drake.control.profiling import STEP
+from sm2ith_drake.errors import UserError
 from sm2ith_drake.run.bench import RunBenchmark
 
 
 def _Bench(args) -> int:
     robots = ["ridgeback_ur10", "stretch3"] if args.robot == "all" else [args.robot]
+    if args.repeat < 1:
+        raise UserError("--repeat must be ≥ 1")
     results = []
-    for robot in robots:
-        r = RunBenchmark(
-            robot=robot,
-            humans=args.humans,
-            predictor=args.predictor,
-            steps=args.steps,
-            solver=args.solver,
-            rti_iterations=args.rti_iterations,
-            scenario_text=args.scenario_text,
-            profile=args.profile,
-        )
-        results.append(r)
-        iters = r["mean_iterations"]
-        iters = "n/a" if iters is None else f"{iters:.1f}"
-        print(
-            f"{robot:15s} solver={r['solver']} qp={r['qp_solver']} "
-            f"steps={r['steps']}  "
-            f"median {r['median_ms']:.1f} ms  p95 {r['p95_ms']:.1f} ms  "
-            f"p99 {r['p99_ms']:.1f} ms  max {r['max_ms']:.1f} ms  "
-            f"first step {r['first_step_ms']:.1f} ms  setup {r['setup_ms']:.0f} ms  "
-            f"mean iterations {iters}  "
-            f"failures {r['solver_failures']}  fallbacks {r['fallbacks']}"
-        )
-        if args.profile:
-            _PrintProfile(r)
+    # Rounds of every robot in turn, so that a drift of the machine's speed
+    # falls on every robot alike.
+    for run in range(args.repeat):
+        for robot in robots:
+            r = RunBenchmark(
+                robot=robot,
+                humans=args.humans,
+                predictor=args.predictor,
+                steps=args.steps,
+                solver=args.solver,
+                rti_iterations=args.rti_iterations,
+                scenario_text=args.scenario_text,
+                profile=args.profile,
+            )
+            if args.repeat > 1:
+                r["run"] = run + 1
+            results.append(r)
+            _PrintRun(r)
+            if args.profile:
+                _PrintProfile(r)
+    if args.repeat > 1:
+        for robot in robots:
+            _PrintSpread(robot, [r for r in results if r["robot"] == robot])
     if args.json:
         Path(args.json).write_text(
             json.dumps(results[0] if len(results) == 1 else results, indent=2)
         )
         print(f"wrote {args.json}")
     return 0
+
+
+def _PrintRun(r: dict) -> None:
+    iters = r["mean_iterations"]
+    iters = "n/a" if iters is None else f"{iters:.1f}"
+    run = f" run {r['run']}" if "run" in r else ""
+    print(
+        f"{r['robot']:15s} solver={r['solver']} qp={r['qp_solver']} "
+        f"steps={r['steps']}{run}  "
+        f"median {r['median_ms']:.1f} ms  p95 {r['p95_ms']:.1f} ms  "
+        f"p99 {r['p99_ms']:.1f} ms  max {r['max_ms']:.1f} ms  "
+        f"first step {r['first_step_ms']:.1f} ms  setup {r['setup_ms']:.0f} ms  "
+        f"mean iterations {iters}  "
+        f"failures {r['solver_failures']}  fallbacks {r['fallbacks']}"
+    )
+
+
+def _PrintSpread(robot: str, runs: list[dict]) -> None:
+    """The run-to-run spread (lowest–highest) of one robot's runs. The plans
+    are deterministic: runs with other mean iterations are flagged."""
+    spread = "  ".join(
+        f"{label} {min(r[key] for r in runs):.1f}–{max(r[key] for r in runs):.1f} ms"
+        for label, key in (
+            ("median", "median_ms"),
+            ("p99", "p99_ms"),
+            ("max", "max_ms"),
+            ("first step", "first_step_ms"),
+        )
+    )
+    iterations = {r["mean_iterations"] for r in runs}
+    plans = "the same plans" if len(iterations) == 1 else "DIFFERENT plans"
+    failures = sum(r["solver_failures"] for r in runs)
+    fallbacks = sum(r["fallbacks"] for r in runs)
+    print(
+        f"{robot:15s} over {len(runs)} runs: {spread}  ({plans}; failures "
+        f"{failures}, fallbacks {fallbacks} in all)"
+    )
 
 
 def _PrintProfile(r: dict) -> None:
@@ -72,12 +110,28 @@ def AddBenchCommand(sub) -> None:
         "--robot",
         default="ridgeback_ur10",
         choices=["ridgeback_ur10", "stretch3", "all"],
+        help="the robot, or both in turn (default: ridgeback_ur10)",
     )
-    bench.add_argument("--humans", type=int, default=0)
+    bench.add_argument(
+        "--humans",
+        type=int,
+        default=0,
+        help="people pacing across the robot's way (default: 0)",
+    )
     bench.add_argument(
         "--predictor", default="orca_kkt", choices=["orca_kkt", "cvmm", "react"]
     )
-    bench.add_argument("--steps", type=int, default=100)
+    bench.add_argument(
+        "--steps", type=int, default=100, help="control steps timed (default: 100)"
+    )
+    bench.add_argument(
+        "--repeat",
+        type=int,
+        default=1,
+        help="runs per robot, in rounds of every robot in turn; prints the "
+        "run-to-run spread (default: 1). Runs after the first reuse what it "
+        "loaded: their setup and first step are warm",
+    )
     bench.add_argument("--solver", default="rti", choices=["rti", "snopt", "ipopt"])
     bench.add_argument(
         "--rti_iterations",
