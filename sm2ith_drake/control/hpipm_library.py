@@ -288,7 +288,7 @@ class OcpQp:
         """An IPM argument by HPIPM's name (iter_max, mu0, tol_stat, ...;
         see CheckIpmArguments)."""
         kind = IPM_ARGUMENTS[key]
-        c_value = ctypes.c_int(value) if kind is int else ctypes.c_double(value)
+        c_value = ctypes.c_int(int(value)) if kind is int else ctypes.c_double(value)
         self.lib.d_ocp_qp_ipm_arg_set(key.encode(), ctypes.byref(c_value), arg)
 
     def Setter(self, field: str):
