@@ -803,3 +803,26 @@ def test_the_doorway_target_at_each_number_of_people():
     assert two["verdict"] == DOES_NOT_HOLD
     assert all(d.n == 5 and d.value == -1.0 for _, d in two["comparisons"])
     assert all(d.n == 0 for _, d in three["comparisons"])
+
+
+def test_the_plan_does_not_buy_a_dodge_the_person_does_not_make(tmp_path):
+    """A pick-and-place run with one ORCA person (the Ridgeback–UR10,
+    `safe`, seed 6) in which the controller with the complementarity
+    relaxation ε = 1e-4 drove 364 mm into the person (367 on df7a7ac): the plan
+    chooses the predicted person's multipliers, and the looser relaxation
+    lets it give them a push from a line they do not touch. With the
+    shipped ε the robot keeps 0.13 m clear
+    (docs/experiments/complementarity-1e-4-df7a7ac)."""
+    specs = PlanRuns(
+        STUDIES["pick_and_place"],
+        runs=7,
+        only="ridgeback_ur10_1h",
+        variants=["safe"],
+        people=["orca"],
+        methods=["SM2ITH"],
+    )
+    spec = specs[6]
+    assert spec.run_id == "pick_and_place_ridgeback_ur10_1h/safe/orca/SM2ITH/seed6"
+    row = RunOne(spec, str(tmp_path))
+    assert row["status"] == "ok"
+    assert row["collision"] is False and row["min_human_gap"] > 0.05

@@ -263,12 +263,8 @@ def test_past_kkt_steps_each_person_holds_its_last_action():
     them; a solved plan keeps that structure, its first T actions are the
     re-solved relaxed-ORCA QPs', and the QP is smaller."""
     T = 3
-    # At the tighter complementarity relaxation of 1e-5 (the default until
-    # 2026-11-29): with 1e-4 this one-pass plan's third action is 1.4e-2
-    # m/s from the re-solved QP's, as the relaxation allows.
-    eps = dict(complementarity_relaxation=1e-5)
-    robot, c = _KktController("ridgeback_ur10", 2, kkt_steps=T, **eps)
-    _, full = _KktController("ridgeback_ur10", 2, **eps)
+    robot, c = _KktController("ridgeback_ur10", 2, kkt_steps=T)
+    _, full = _KktController("ridgeback_ur10", 2)
     pred = c.predictor
     assert pred.kkt_steps == T < pred.N
     kkt_rows = sum(

@@ -24,15 +24,6 @@ from sm2ith_drake.geometry import point_segment_distance_2d, segment_closest_poi
 
 _EPS = 1e-9
 
-# A DT-CBF row is far from binding (FarRows) only if its value at the
-# linearization point is at least this far above its bound (m; as the rows
-# a lazy solve puts back within PIQP's LAZY_MARGIN of theirs). Measured
-# (bench, 10 people, 200 steps, ε = 1e-4; README, Benchmark): rows put back
-# at the first knots, where a person is more than lazy_barrier_distance away
-# but closing in faster than the decay allows, made a stage QP be solved
-# twice in the Ridgeback–UR10's steps 1–5; p95 220.6 → 164.6 ms.
-FAR_ROW_MARGIN = 0.05
-
 
 def _Lift(x):
     """Planar points (..., 2) as points on the floor (..., 3)."""
@@ -338,21 +329,17 @@ class DtCbfGroup(ConstraintGroup):
         return A, B, point_segment_distance_2d(A, B, P)
 
     def FarRows(self, point, distance):
-        """The predicted-human rows far from binding at ``point``: body and
-        person more than ``distance`` (m, surface to margin: h) apart at
-        both knots of the row, and the row itself, h_{k+1} − (1 − γ) h_k
-        ≥ 0, more than FAR_ROW_MARGIN from its bound (a row binds where the
-        plan closes in faster than the decay allows, at any distance). The
-        walls' and guards' rows are never far (they do not couple the
-        people's variables to the robot's)."""
+        """The predicted-human rows whose body and person are more than
+        ``distance`` (m, surface to margin: h) apart at both knots of the row
+        at ``point``; the walls' and guards' rows are never far (they do not
+        couple the people's variables to the robot's)."""
         if distance <= 0 or self.num_rows == 0 or self._H == 0:
             return None
-        h = self._HumanDistances(point)[2][0] - self._human_offset  # (K, H, C)
-        far = (h[:-1] > distance) & (h[1:] > distance)
-        far &= h[1:] - self._Decay(h[:-1]) * h[:-1] > FAR_ROW_MARGIN
+        d = self._HumanDistances(point)[2][0]
+        far = (d - self._human_offset) > distance  # (K, H, C)
         N = self._layout.N
         rows = np.zeros((N, self.rows_per_step), dtype=bool)
-        rows[:, : self._H * self._C] = far.reshape(N, -1)
+        rows[:, : self._H * self._C] = (far[:-1] & far[1:]).reshape(N, -1)
         mask = np.zeros(self.num_rows, dtype=bool)
         mask[: N * self.rows_per_step] = rows.ravel()
         return mask
