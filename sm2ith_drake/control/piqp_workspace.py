@@ -34,6 +34,7 @@ import numpy as np
 import piqp
 import scipy.sparse as sp
 
+from sm2ith_drake.control.hpipm_library import Number
 from sm2ith_drake.control.profiling import PROFILER
 from sm2ith_drake.errors import UserError
 
@@ -74,8 +75,9 @@ def CheckPiqpSettings(settings: dict) -> dict:
     """The solver_options entry "PIQP" (PIQP's settings by name, and
     ``instruction_set``) checked against PIQP's own Settings: a number YAML
     read as text ("1e-4") becomes a number. UserError on a name PIQP does
-    not have or a value of the wrong type (PIQP would reject it at every
-    solve, and every step would fail)."""
+    not have, a value of the wrong type (PIQP would reject it at every
+    solve, and every step would fail) or a tolerance that is not a finite
+    number (NaN or infinity, which PIQP would take)."""
     checked = dict(settings)
     build = PiqpBuild(checked.get("instruction_set", "generic"))
     probe = build.SparseSolver().settings
@@ -91,11 +93,9 @@ def CheckPiqpSettings(settings: dict) -> dict:
                 raise UserError(f"PIQP kkt_solver {value!r}: one of {', '.join(names)}")
             continue
         default = getattr(probe, key)
-        if isinstance(value, str) and isinstance(default, float):
-            try:
-                value = float(value)
-            except ValueError:
-                pass
+        if isinstance(default, float):
+            # A finite number, or its text (a YAML "1e-4", not "nan").
+            value = Number(f"PIQP setting {key!r}", value, float)
         try:
             setattr(probe, key, value)
         except TypeError:
