@@ -122,6 +122,11 @@ class SafetyConfig:
     # with γ it has the plan evade a person walking on as CVMM does. 1 by
     # default since 2026-11-28 (with prediction.overtaking; README, Doorway).
     guard_gamma: float = 1.0
+    # The guard rows where the robot is already inside the margin of the
+    # person moving on (h_k < 0 at the linearization point; not in the
+    # paper): "exit" asks h_{k+1} ≥ (1 − guard_gamma) h_k (with
+    # guard_gamma 1: out at once), "hold" asks h_{k+1} ≥ h_k (no closer).
+    guard_inside: str = "exit"
     # Hold the guard over at least the base's stopping time (not in the
     # paper): max(guard_steps, ⌈stopping time / time_step⌉) steps, where the
     # stopping time is the slowest translational axis's top speed over its

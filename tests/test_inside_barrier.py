@@ -24,7 +24,7 @@ HORIZON = 3
 STEP = 1e-6
 
 
-def _Controller(inside, positions, guard_gamma=0.0, config=None):
+def _Controller(inside, positions, guard_gamma=0.0, config=None, guard_inside="exit"):
     """A Stretch 3 among people at ``positions`` (ORCA-KKT slots, the guard
     on 2 steps, with ``guard_gamma``) beside a wall, and a perturbed warm
     start; ``config``: the ControllerConfig (default: a horizon of
@@ -36,7 +36,10 @@ def _Controller(inside, positions, guard_gamma=0.0, config=None):
         config or ControllerConfig(horizon=HORIZON),
         prediction=PredictionConfig(predictor="orca_kkt", max_humans=len(positions)),
         safety=SafetyConfig(
-            guard_steps=2, inside_barrier=inside, guard_gamma=guard_gamma
+            guard_steps=2,
+            inside_barrier=inside,
+            guard_gamma=guard_gamma,
+            guard_inside=guard_inside,
         ),
         obstacles=[ObstacleConfig(vertices=[[-1.0, -0.45], [1.0, -0.45]])],
     )
@@ -188,14 +191,56 @@ def test_guard_gamma_rows_have_consistent_jacobians():
     np.testing.assert_allclose(J[guard], F[guard], atol=2e-6)
 
 
+def test_guard_hold_rows_ask_for_no_closer_inside_the_margin():
+    """safety.guard_inside "hold": a guard row whose h_k < 0 at the point
+    (inside the margin of the person moving on) reads h_{k+1} − h_k, so it
+    asks for no closer rather than out at once (h_{k+1}, guard_gamma 1);
+    the others are the same, and so are the people's and walls' rows.
+    With the slacks at 0 the hold rows minus the exit rows are −h_k: the
+    exit row of the step before (k ≥ 1), −h_0 for the first."""
+    c_e, point, z, targets = _Controller("decay", POSITIONS, guard_gamma=1.0)
+    c_h, _, _, _ = _Controller("decay", POSITIONS, guard_gamma=1.0, guard_inside="hold")
+    cbf_e, cbf_h = c_e.program.cbf, c_h.program.cbf
+    z = z.copy()
+    z[cbf_e.slack] = 0.0
+    g_e, _ = cbf_e.Eval(c_e.program.MakePoint(z, targets))
+    g_h, _ = cbf_h.Eval(c_h.program.MakePoint(z, targets))
+    main = cbf_e.num_rows - cbf_e.num_guard
+    np.testing.assert_array_equal(g_e[:main], g_h[:main])
+    steps = cbf_e.guard_steps
+    rows_e = g_e[main:].reshape(steps, -1)  # h_{k+1} at every knot
+    rows_h = g_h[main:].reshape(steps, -1)
+    inside = rows_e[:-1] < 0  # h_k < 0 for k ≥ 1
+    assert inside.any() and (~inside).any()
+    np.testing.assert_allclose(
+        rows_h[1:], np.where(inside, rows_e[1:] - rows_e[:-1], rows_e[1:]), atol=1e-12
+    )
+    # The person inside the margin at knot 0: a first row no closer than h_0.
+    first = rows_h[0] != rows_e[0]
+    assert first.any() and np.all(rows_h[0][first] > rows_e[0][first])
+
+
+def test_guard_hold_rows_have_consistent_jacobians():
+    """The hold rows against central differences, at a point where no h_k
+    is near 0 (the rows switch form there)."""
+    c, point, z, targets = _Controller(
+        "decay", POSITIONS, guard_gamma=1.0, guard_inside="hold"
+    )
+    cbf = c.program.cbf
+    guard = slice(cbf.num_rows - cbf.num_guard, cbf.num_rows)
+    J, F = _JacobianAndDifferences(c, point, z, targets)
+    np.testing.assert_allclose(J[guard], F[guard], atol=2e-6)
+
+
 def test_the_scenario_option_reaches_the_barrier_rows():
     """safety.inside_barrier from a scenario file to the DT-CBF group (a bad
     value is refused by the scenario checks: tests/test_bad_input.py)."""
     scenario, robot = LoadScenarioAndRobot(
         filename=str(GetDiagramsDir() / "doorway.scenarios.yaml"),
         scenario_name="doorway_stretch3",
-        scenario_text="{safety: {inside_barrier: exit}}",
+        scenario_text="{safety: {inside_barrier: exit, guard_inside: hold}}",
     )
     controller = MpcController.FromScenario(robot, scenario)
     assert controller.program.cbf.inside == "exit"
+    assert controller.program.cbf.guard_inside == "hold"
     assert MpcController(robot, scenario.tasks, scenario.controller).program.cbf is None

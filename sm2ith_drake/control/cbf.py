@@ -102,10 +102,16 @@ class DtCbfGroup(ConstraintGroup):
         extra_humans=0,
         inside="decay",
         guard_gamma=None,
+        guard_inside="exit",
     ):
         if inside not in ("decay", "exit"):
             raise ValueError(f"inside must be 'decay' or 'exit', not {inside!r}")
+        if guard_inside not in ("exit", "hold"):
+            raise ValueError(
+                f"guard_inside must be 'exit' or 'hold', not {guard_inside!r}"
+            )
         self.inside = inside
+        self.guard_inside = guard_inside
         self._robot = robot
         self._layout = layout
         N = layout.N
@@ -240,19 +246,28 @@ class DtCbfGroup(ConstraintGroup):
                     "static": (self.static_p0, np.zeros_like(self.static_p0)),
                     "extra": (self.extra_p0, self.extra_v0),
                 }[which]
-                gamma = self.guard_gamma if which == "moving" else None
+                moving = which == "moving"
                 gi, vi = self._GuardBlock(
-                    point, steps, p0, v0, which == "extra", gamma=gamma
+                    point,
+                    steps,
+                    p0,
+                    v0,
+                    which == "extra",
+                    gamma=self.guard_gamma if moving else None,
+                    hold=moving and self.guard_inside == "hold",
                 )
                 g.append(gi)
                 vals.append(vi)
         return np.concatenate(g), np.concatenate(vals)
 
-    def _GuardBlock(self, point, G, p0, v0, nearest=False, gamma=None):
+    def _GuardBlock(self, point, G, p0, v0, nearest=False, gamma=None, hold=False):
         """h(q_{k+1}, p0 + (k+1)Δt v0) − (1 − γ) h(q_k, p0 + kΔt v0) for
         k < G, and their q_k, q_{k+1} gradients: per capsule, or with
         ``nearest`` of the whole robot (the nearest capsule at each knot);
-        ``gamma`` replaces γ (None: the barrier's)."""
+        ``gamma`` replaces γ (None: the barrier's). With ``hold``, a row
+        whose h_k < 0 at the linearization point (the robot already inside
+        the margin of the person moving on) is h_{k+1} − h_k ≥ 0 instead:
+        no closer, rather than out at once (SafetyConfig.guard_inside)."""
         kin = point.kin
         ends = kin.capsule_points[: G + 1, :, :, :2]  # knots 0 … G
         jac = kin.capsule_jacobians[: G + 1, :, :, :2, :]
@@ -269,6 +284,8 @@ class DtCbfGroup(ConstraintGroup):
             h = np.take_along_axis(h, c, axis=2)
             dq = np.take_along_axis(dq, c[..., None], axis=2)
         a = self._Decay(h[:-1], gamma)
+        if hold:
+            a = np.where(h[:-1] < 0, 1.0, a)
         g = h[1:] - a * h[:-1]  # (G, H, C or 1)
         a = a[..., None]
         vals = np.concatenate([-a * dq[:-1], dq[1:]], axis=3)  # (G, H, ·, 2n)

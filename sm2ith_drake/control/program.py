@@ -165,6 +165,7 @@ class MpcProgram:
                 extra_humans=extras,
                 inside=safety.inside_barrier,
                 guard_gamma=safety.guard_gamma,
+                guard_inside=safety.guard_inside,
             )
             nr = self.cbf.num_rows
             self.extra_constraints.append((self.cbf, np.zeros(nr), np.full(nr, np.inf)))
