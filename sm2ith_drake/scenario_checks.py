@@ -293,6 +293,7 @@ def _ValidatePeople(scenario: Scenario) -> None:
     _OneOf(s.mode, ("safe", "paper"), "safety.mode")
     _OneOf(s.inside_barrier, ("decay", "exit"), "safety.inside_barrier")
     _OneOf(s.guard_inside, ("exit", "hold"), "safety.guard_inside")
+    _NonNegative(s.turn_speed_floor, "safety.turn_speed_floor")
     _NonNegative(s.guard_steps, "safety.guard_steps")
     _NonNegative(s.static_guard_steps, "safety.static_guard_steps")
     _NonNegative(s.guard_deviation, "safety.guard_deviation")

@@ -127,6 +127,13 @@ class SafetyConfig:
     # paper): "exit" asks h_{k+1} ≥ (1 − guard_gamma) h_k (with
     # guard_gamma 1: out at once), "hold" asks h_{k+1} ≥ h_k (no closer).
     guard_inside: str = "exit"
+    # Speed-and-separation monitoring of the base's turn (not in the paper;
+    # `safe` only, every method alike; control/separation.py): near a
+    # tracked person the yaw rate is bounded so that the farthest body
+    # could stop turning before it reaches the person's margin, |ω| ≤
+    # √(2αh/r), but never below turn_speed_floor (rad/s).
+    turn_monitoring: bool = False
+    turn_speed_floor: float = 0.2
     # Hold the guard over at least the base's stopping time (not in the
     # paper): max(guard_steps, ⌈stopping time / time_step⌉) steps, where the
     # stopping time is the slowest translational axis's top speed over its

@@ -43,6 +43,7 @@ from sm2ith_drake.control.robot_groups import (
     SelfCollisionGroup,
     TaskErrorGroup,
 )
+from sm2ith_drake.control.separation import TurnLimits
 from sm2ith_drake.control.tasks import Task
 from sm2ith_drake.robots.planar_base import (
     NUM_BASE_POSITIONS,
@@ -195,6 +196,11 @@ class MpcProgram:
             lower[self.cbf.slack] = 0.0
         self.variable_lower = lower
         self.variable_upper = upper
+        # SafetyConfig.turn_monitoring, `safe` only (control/separation.py).
+        safety = safety or SafetyConfig()
+        self.turn_monitoring = (
+            safety if safety.turn_monitoring and safety.mode == "safe" else None
+        )
         # Joint bounds that follow full braking where a joint cannot stop
         # before its limit (see _WidenForBraking); False only to show that
         # the QP is infeasible without them.
@@ -242,7 +248,36 @@ class MpcProgram:
                     self.time_step,
                     self.predictor.extra_active,
                 )
+            if self.turn_monitoring is not None:
+                self._LimitTurn(lower, upper, q0, nu0)
         return lower, upper
+
+    def _LimitTurn(self, lower, upper, q0, nu0) -> None:
+        """Bounds the base's yaw rate near people (control/separation.py)."""
+        predictor, safety = self.predictor, self.turn_monitoring
+        people = np.concatenate(
+            [
+                predictor.p0[predictor.active],
+                predictor.extra_p0[predictor.extra_active],
+            ]
+        )
+        limits = TurnLimits(
+            self.robot,
+            q0,
+            nu0,
+            people,
+            human_radius=safety.human_radius,
+            human_margin=safety.human_margin,
+            floor=safety.turn_speed_floor,
+            time_step=self.time_step,
+            horizon=self.layout.N,
+        )
+        if limits is None:
+            return
+        w, bounds = limits
+        cols = np.asarray(self.layout.nu)[1 : 1 + bounds.size, w]
+        lower[cols] = np.maximum(lower[cols], -bounds)
+        upper[cols] = np.minimum(upper[cols], bounds)
 
     def _WidenForBraking(self, lower, upper, q0, nu0) -> None:
         """Keeps the problem feasible when an arm joint moves toward a limit
