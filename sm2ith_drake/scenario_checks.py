@@ -293,14 +293,11 @@ def _ValidatePeople(scenario: Scenario) -> None:
     _OneOf(s.mode, ("safe", "paper"), "safety.mode")
     _OneOf(s.inside_barrier, ("decay", "exit"), "safety.inside_barrier")
     _OneOf(s.guard_inside, ("exit", "hold"), "safety.guard_inside")
-    _NonNegative(s.turn_speed_floor, "safety.turn_speed_floor")
-    _NonNegative(s.guard_steps, "safety.guard_steps")
-    _NonNegative(s.static_guard_steps, "safety.static_guard_steps")
-    _NonNegative(s.guard_deviation, "safety.guard_deviation")
-    _NonNegative(s.guard_hold, "safety.guard_hold")
-    _NonNegative(s.guard_gap, "safety.guard_gap")
-    _NonNegative(s.backup_margin, "safety.backup_margin")
-    _NonNegative(s.human_margin, "safety.human_margin")
+    for name in (
+        "turn_speed_floor", "guard_steps", "static_guard_steps", "guard_deviation",
+        "guard_hold", "guard_gap", "backup_margin", "human_margin", "obstacle_margin",
+    ):  # fmt: skip
+        _NonNegative(getattr(s, name), f"safety.{name}")
     _Positive(s.human_slack_weight, "safety.human_slack_weight")
     if not s.obstacle_slack_weight > s.human_slack_weight:
         raise ScenarioError(
@@ -308,7 +305,6 @@ def _ValidatePeople(scenario: Scenario) -> None:
             f"(a wall outranks a person's margin), got {s.obstacle_slack_weight} "
             f"against {s.human_slack_weight}"
         )
-    _NonNegative(s.obstacle_margin, "safety.obstacle_margin")
     _Positive(s.human_radius, "safety.human_radius")
     pc = scenario.perception
     _OneOf(pc.estimator, ("kalman", "truth"), "perception.estimator")

@@ -62,6 +62,8 @@ BAD_INPUTS = [
      ["safety.inside_barrier", "decay|exit"]),
     ("unknown_guard_inside", "stretch3_reach", "{safety: {guard_inside: out}}",
      ["safety.guard_inside", "exit|hold"]),
+    ("negative_turn_speed_floor", "stretch3_reach",
+     "{safety: {turn_speed_floor: -0.1}}", ["safety.turn_speed_floor", "≥ 0"]),
     ("negative_max_speed_factor", "stretch3_reach",
      "{prediction: {max_speed_factor: -1.0}}",
      ["prediction.max_speed_factor", "≥ 0"]),
