@@ -274,10 +274,10 @@ class MpcProgram:
         )
         if limits is None:
             return
-        w, bounds = limits
-        cols = np.asarray(self.layout.nu)[1 : 1 + bounds.size, w]
-        lower[cols] = np.maximum(lower[cols], -bounds)
-        upper[cols] = np.minimum(upper[cols], bounds)
+        w, low, high = limits
+        cols = np.asarray(self.layout.nu)[1 : 1 + high.size, w]
+        lower[cols] = np.maximum(lower[cols], low)
+        upper[cols] = np.minimum(upper[cols], high)
 
     def _WidenForBraking(self, lower, upper, q0, nu0) -> None:
         """Keeps the problem feasible when an arm joint moves toward a limit
