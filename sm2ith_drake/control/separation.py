@@ -63,6 +63,18 @@ def TurnLimits(
     q0 = np.asarray(q0, dtype=float)
     if people.size == 0 or not np.all(np.isfinite(q0)):
         return None
+    # Nobody within the robot's reach (its farthest body's, turning about the
+    # base's centre) plus their margin: no turn can reach them.
+    ends = robot.CalcKinematics(q0[None]).capsule_points[0, :, :, :2]
+    reach = np.max(
+        np.linalg.norm(ends - q0[None, None, :2], axis=2).max(axis=1)
+        + robot.capsule_radii
+    )
+    if (
+        np.min(np.linalg.norm(people - q0[:2], axis=1))
+        > reach + human_radius + human_margin
+    ):
+        return None
     w = NumBaseVelocities(robot) - 1
     top = min(-robot.nu_lower[w], robot.nu_upper[w])
     alpha = min(-robot.nudot_lower[w], robot.nudot_upper[w])
