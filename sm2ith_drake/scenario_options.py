@@ -126,12 +126,20 @@ class SafetyConfig:
     # person moving on (h_k < 0 at the linearization point; not in the
     # paper): "exit" asks h_{k+1} ≥ (1 − guard_gamma) h_k (with
     # guard_gamma 1: out at once), "hold" asks h_{k+1} ≥ h_k (no closer).
+    # "hold" measured on 2026-11-29 and not kept: in the Stretch 3's
+    # doorway the robot closed in during a contact in more runs (53 against
+    # 43 of 120; docs/experiments/guard-hold-c5f5f76).
     guard_inside: str = "exit"
     # Speed-and-separation monitoring of the base's turn (not in the paper;
     # `safe` only, every method alike; control/separation.py): near a
-    # tracked person the yaw rate is bounded so that the farthest body
-    # could stop turning before it reaches the person's margin, |ω| ≤
-    # √(2αh/r), but never below turn_speed_floor (rad/s).
+    # tracked person the yaw rate is bounded so that every body could stop
+    # turning before it reaches the person's margin (turning away is free),
+    # |ω| ≤ √(2αθ), θ the last clear angle of its braking sweep, but
+    # never below turn_speed_floor (rad/s). Measured on 2026-11-29
+    # (docs/experiments/turn-monitoring): in the open the robot closed in
+    # during a contact in fewer runs (6 against 13 of 300), but in the
+    # Stretch 3's doorway it arrived less often (65 against 75 of 120);
+    # off by default.
     turn_monitoring: bool = False
     turn_speed_floor: float = 0.2
     # Hold the guard over at least the base's stopping time (not in the
