@@ -157,6 +157,21 @@ def test_guard_rows_switch_form_inside_the_margin_too():
     assert np.all(g_e[guard][differ] < g_d[guard][differ])
 
 
+def _GuardRowsOfBoth(c_a, c_b, z, targets):
+    """Two controllers' DT-CBF rows at the same z with the slacks at 0: the
+    people's and walls' rows (asserted equal), then each one's guard rows
+    (guard steps, ·)."""
+    cbf_a, cbf_b = c_a.program.cbf, c_b.program.cbf
+    z = z.copy()
+    z[cbf_a.slack] = 0.0
+    g_a, _ = cbf_a.Eval(c_a.program.MakePoint(z, targets))
+    g_b, _ = cbf_b.Eval(c_b.program.MakePoint(z, targets))
+    main = cbf_a.num_rows - cbf_a.num_guard
+    np.testing.assert_array_equal(g_a[:main], g_b[:main])
+    steps = cbf_a.guard_steps
+    return g_a[main:].reshape(steps, -1), g_b[main:].reshape(steps, -1)
+
+
 def test_guard_gamma_one_asks_only_that_the_guarded_barrier_holds():
     """safety.guard_gamma: with 1 each guard row reads h_{k+1} of the person
     moving on at their measured velocity; with the default (safety.gamma)
@@ -168,15 +183,7 @@ def test_guard_gamma_one_asks_only_that_the_guarded_barrier_holds():
     c_1, _, _, _ = _Controller("decay", POSITIONS, guard_gamma=1.0)
     cbf_d, cbf_1 = c_d.program.cbf, c_1.program.cbf
     assert cbf_1.guard_gamma == 1.0 and cbf_d.guard_gamma == c_d.safety.gamma
-    z = z.copy()
-    z[cbf_d.slack] = 0.0
-    g_d, _ = cbf_d.Eval(c_d.program.MakePoint(z, targets))
-    g_1, _ = cbf_1.Eval(c_1.program.MakePoint(z, targets))
-    main = cbf_d.num_rows - cbf_d.num_guard
-    np.testing.assert_array_equal(g_d[:main], g_1[:main])
-    steps = cbf_d.guard_steps
-    rows_d = g_d[main:].reshape(steps, -1)
-    rows_1 = g_1[main:].reshape(steps, -1)
+    rows_d, rows_1 = _GuardRowsOfBoth(c_d, c_1, z, targets)
     a = 1.0 - c_d.safety.gamma
     np.testing.assert_allclose(rows_d[1:] - rows_1[1:], -a * rows_1[:-1], atol=1e-12)
     assert np.all(rows_d[0] != rows_1[0])
@@ -200,16 +207,8 @@ def test_guard_hold_rows_ask_for_no_closer_inside_the_margin():
     exit row of the step before (k ≥ 1), −h_0 for the first."""
     c_e, point, z, targets = _Controller("decay", POSITIONS, guard_gamma=1.0)
     c_h, _, _, _ = _Controller("decay", POSITIONS, guard_gamma=1.0, guard_inside="hold")
-    cbf_e, cbf_h = c_e.program.cbf, c_h.program.cbf
-    z = z.copy()
-    z[cbf_e.slack] = 0.0
-    g_e, _ = cbf_e.Eval(c_e.program.MakePoint(z, targets))
-    g_h, _ = cbf_h.Eval(c_h.program.MakePoint(z, targets))
-    main = cbf_e.num_rows - cbf_e.num_guard
-    np.testing.assert_array_equal(g_e[:main], g_h[:main])
-    steps = cbf_e.guard_steps
-    rows_e = g_e[main:].reshape(steps, -1)  # h_{k+1} at every knot
-    rows_h = g_h[main:].reshape(steps, -1)
+    assert c_h.program.cbf.guard_inside == "hold"
+    rows_e, rows_h = _GuardRowsOfBoth(c_e, c_h, z, targets)  # rows_e: h_{k+1}
     inside = rows_e[:-1] < 0  # h_k < 0 for k ≥ 1
     assert inside.any() and (~inside).any()
     np.testing.assert_allclose(
