@@ -135,13 +135,15 @@ class SafetyConfig:
     # tracked person the yaw rate is bounded so that every body could stop
     # turning before it reaches the person's margin (turning away is free),
     # |ω| ≤ √(2αθ), θ the last clear angle of its braking sweep, but
-    # never below turn_speed_floor (rad/s). Measured on 2026-11-29
-    # (docs/experiments/turn-monitoring): in the open the robot closed in
-    # during a contact in fewer runs (6 against 13 of 300), but in the
-    # Stretch 3's doorway it arrived less often (65 against 75 of 120);
-    # off by default.
+    # never below turn_speed_floor (rad/s). Measured on 2026-11-29 on
+    # SM²ITH's `safe` runs among ORCA people, 30 seeds, 420 runs
+    # (docs/experiments/turn-monitoring): with a floor of 0.4 the robot
+    # closed in during a contact in 40 runs against 56 (-0.038 [-0.067,
+    # -0.010]), arrivals 371 against 372; with 0.2 the Stretch 3's doorway
+    # lost arrivals (65 against 75 of 120). Off by default until every
+    # method's `safe` studies are re-run with it.
     turn_monitoring: bool = False
-    turn_speed_floor: float = 0.2
+    turn_speed_floor: float = 0.4
     # Hold the guard over at least the base's stopping time (not in the
     # paper): max(guard_steps, ⌈stopping time / time_step⌉) steps, where the
     # stopping time is the slowest translational axis's top speed over its

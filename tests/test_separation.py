@@ -177,7 +177,7 @@ def _Program(mode, monitoring=True):
 def test_the_program_bounds_the_turn_in_safe_only():
     upper, top = _Program("safe")
     assert upper[0] == 0.0  # ν_0 pinned
-    np.testing.assert_allclose(upper[1:5], 0.2)
+    np.testing.assert_allclose(upper[1:5], SafetyConfig().turn_speed_floor)
     assert np.all(upper[-2:] == top)
     for upper, top in (_Program("paper"), _Program("safe", monitoring=False)):
         assert np.all(upper[1:] == top)
