@@ -235,23 +235,19 @@ class MpcController:
 
     @PROFILER.Timed("warm_start")
     def WarmStart(self, state: ControllerState, q0, nu0) -> np.ndarray:
-        """The previous plan's inputs shifted by one control period and rolled
-        out from the measured state (a dynamically consistent guess), with
-        the predictor's humans (their predicted motion along it)."""
-        z = self.program.Rollout(q0, nu0, self.WarmStartInputs(state))
+        """The previous plan's inputs shifted by one period, rolled out from
+        the measured state within the turn monitoring's bounds (outside them
+        stage QPs were infeasible), with the predictor's humans along it."""
+        bounds = self.program.TurnBounds(q0, nu0)
+        z = self.program.Rollout(q0, nu0, self.WarmStartInputs(state), bounds)
         if self.predictor is not None:
             self.predictor.WarmStart(z)
         return z
 
     def WarmStartInputs(self, state: ControllerState) -> np.ndarray:
         """The robot inputs the next step starts from (WarmStartInputs)."""
-        return WarmStartInputs(
-            state.plan,
-            state.plan_age,
-            self.shift,
-            self.program.layout.N,
-            self.robot.num_velocities,
-        )
+        N, m = self.program.layout.N, self.robot.num_velocities
+        return WarmStartInputs(state.plan, state.plan_age, self.shift, N, m)
 
     def Plan(self, state: ControllerState) -> MpcPlan:
         """The ``plan`` output of a state: its latest solution and the inputs

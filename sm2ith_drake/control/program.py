@@ -252,9 +252,14 @@ class MpcProgram:
                 self._LimitTurn(lower, upper, q0, nu0)
         return lower, upper
 
-    def _LimitTurn(self, lower, upper, q0, nu0) -> None:
-        """Bounds the base's yaw rate near people (control/separation.py)."""
+    def TurnBounds(self, q0, nu0):
+        """The yaw rate's bounds of SafetyConfig.turn_monitoring at the
+        measured state (control/separation.py): (lower, upper), each (N+1, m)
+        over every ν_k (the velocity limits elsewhere), or None where it is
+        off or nothing binds."""
         predictor, safety = self.predictor, self.turn_monitoring
+        if safety is None or predictor is None:
+            return None
         people = np.concatenate(
             [
                 predictor.p0[predictor.active],
@@ -273,11 +278,23 @@ class MpcProgram:
             horizon=self.layout.N,
         )
         if limits is None:
-            return
+            return None
         w, low, high = limits
-        cols = np.asarray(self.layout.nu)[1 : 1 + high.size, w]
-        lower[cols] = np.maximum(lower[cols], low)
-        upper[cols] = np.minimum(upper[cols], high)
+        shape = (self.layout.N + 1, self.robot.num_velocities)
+        lower = np.broadcast_to(self.robot.nu_lower, shape).copy()
+        upper = np.broadcast_to(self.robot.nu_upper, shape).copy()
+        lower[1 : 1 + low.size, w] = np.maximum(lower[1 : 1 + low.size, w], low)
+        upper[1 : 1 + high.size, w] = np.minimum(upper[1 : 1 + high.size, w], high)
+        return lower, upper
+
+    def _LimitTurn(self, lower, upper, q0, nu0) -> None:
+        """Bounds the base's yaw rate near people (TurnBounds)."""
+        bounds = self.TurnBounds(q0, nu0)
+        if bounds is None:
+            return
+        cols = np.asarray(self.layout.nu)[1:]
+        lower[cols] = np.maximum(lower[cols], bounds[0][1:])
+        upper[cols] = np.minimum(upper[cols], bounds[1][1:])
 
     def _WidenForBraking(self, lower, upper, q0, nu0) -> None:
         """Keeps the problem feasible when an arm joint moves toward a limit
@@ -324,11 +341,16 @@ class MpcProgram:
                     worst = max(worst, float(np.max(lower - g)))
         return worst
 
-    def Rollout(self, q0: np.ndarray, nu0: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """z from integrating the model with inputs u (ν clipped to limits)."""
+    def Rollout(
+        self, q0: np.ndarray, nu0: np.ndarray, u: np.ndarray, nu_bounds=None
+    ) -> np.ndarray:
+        """z from integrating the model with inputs u (ν clipped to limits,
+        or to ``nu_bounds``: (lower, upper), each (N+1, m))."""
         L = self.layout
         z = np.zeros(L.num_variables)
-        z[L.q], z[L.nu], z[L.u] = Rollout(self.robot, q0, nu0, u, self.time_step)
+        z[L.q], z[L.nu], z[L.u] = Rollout(
+            self.robot, q0, nu0, u, self.time_step, nu_bounds
+        )
         return z
 
     def ConstraintGroups(self) -> list[tuple[ConstraintGroup, np.ndarray, np.ndarray]]:

@@ -185,17 +185,21 @@ class SelfCollisionGroup(ConstraintGroup):
         return (d + point.z[self.slack]).ravel(), self.Structural(jac.ravel())
 
 
-def ModelStep(robot, q, nu, u, time_step: float):
+def ModelStep(robot, q, nu, u, time_step: float, nu_lower=None, nu_upper=None):
     """One step of the MPC's discrete model (eq. htmpc_dyn as DynamicsGroup
-    writes it): ν' = clip(ν + Δt u) to the velocity limits, and
-    q' = q + Δt G(q) (ν + ν')/2. Returns (q', ν')."""
-    nu_next = np.clip(nu + time_step * u, robot.nu_lower, robot.nu_upper)
+    writes it): ν' = clip(ν + Δt u) to the velocity limits (or to
+    ``nu_lower``, ``nu_upper``), and q' = q + Δt G(q) (ν + ν')/2. Returns
+    (q', ν')."""
+    lower = robot.nu_lower if nu_lower is None else nu_lower
+    upper = robot.nu_upper if nu_upper is None else nu_upper
+    nu_next = np.clip(nu + time_step * u, lower, upper)
     return q + 0.5 * time_step * robot.G(q) @ (nu + nu_next), nu_next
 
 
-def Rollout(robot, q0, nu0, u, time_step: float):
+def Rollout(robot, q0, nu0, u, time_step: float, nu_bounds=None):
     """Integrates the model from (q0, ν0) with the inputs u (N, m), clipped
-    to the acceleration limits (q to the joint limits): q (N+1, n),
+    to the acceleration limits (q to the joint limits; ν to the velocity
+    limits, or to ``nu_bounds``: (lower, upper), each (N+1, m)): q (N+1, n),
     ν (N+1, m) and the inputs u (N, m) that reproduce them."""
     N = len(u)
     q = np.array(q0, dtype=float)
@@ -206,7 +210,8 @@ def Rollout(robot, q0, nu0, u, time_step: float):
     qs[0], nus[0] = q, nu
     for k in range(N):
         uk = np.clip(u[k], robot.nudot_lower, robot.nudot_upper)
-        q, nu = ModelStep(robot, q, nu, uk, time_step)
+        bounds = (None, None) if nu_bounds is None else (b[k + 1] for b in nu_bounds)
+        q, nu = ModelStep(robot, q, nu, uk, time_step, *bounds)
         q = np.clip(q, robot.q_lower, robot.q_upper)
         us[k] = (nu - nus[k]) / time_step
         qs[k + 1], nus[k + 1] = q, nu

@@ -26,8 +26,9 @@ from ω covers ω²/(2α), so the turn that way is bounded by
 never below ``turn_speed_floor`` (a robot with someone at its margin can
 still turn, slowly), and free where the whole sweep is clear. Turning away
 from a person is not limited. The bounds hold at the knots within the
-yaw's stopping time, each no tighter than braking from the measured ω
-allows (they stay feasible: ν_0 is pinned to the measured velocity).
+yaw's stopping time, each no tighter than braking from the measured ω at
+0.8 α allows (they stay feasible, with room: ν_0 is pinned to the
+measured velocity).
 Translation is the DT-CBF's and the guard's.
 """
 
@@ -40,6 +41,9 @@ from sm2ith_drake.robots.planar_base import NumBaseVelocities
 
 # Sampled angles of each direction's braking sweep.
 SWEEP_SAMPLES = 48
+# A measured turn faster than its bound is held no tighter than braking at
+# this share of the yaw deceleration limit allows.
+BRAKING_SHARE = 0.8
 
 
 def TurnLimits(
@@ -99,7 +103,10 @@ def TurnLimits(
         return None
     # The knots within the yaw's stopping time from its top rate.
     steps = min(int(horizon), math.ceil(top / alpha / time_step - 1e-9))
-    braking = alpha * time_step * np.arange(1, steps + 1)
+    # Braking at BRAKING_SHARE of α: the bound then leaves the plan room
+    # (at α itself it pins ν_k and u_k to a single point, a feasible set
+    # without interior that PIQP declared infeasible).
+    braking = BRAKING_SHARE * alpha * time_step * np.arange(1, steps + 1)
     omega0 = float(nu0[w]) if np.isfinite(nu0[w]) else 0.0
     up = np.minimum(np.maximum(upper, omega0 - braking), top)
     down = np.minimum(np.maximum(lower, -omega0 - braking), top)
