@@ -6,6 +6,8 @@ checked by turning the robot's kinematics through the braking sweep with
 an independent distance (sampled capsule axes), in both directions, for a
 person in 25 directions around each robot."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -199,3 +201,34 @@ def test_the_warm_start_keeps_within_the_bounds():
     np.testing.assert_allclose(nu[1:] - nu[:-1], c.program.time_step * u, atol=1e-12)
     w = NumBaseVelocities(c.robot) - 1
     assert nu[1, w] < 1.0
+
+
+def test_a_step_the_turn_bounds_leave_infeasible_goes_without_them():
+    """The first stage fails while the turn is bounded (a stage solver that
+    refuses bounded turns stands in for the doorway jams' infeasible QPs):
+    the hierarchy solves the step again without the turn bounds, and
+    succeeds; without monitoring nothing is solved twice."""
+    c, z, lower, upper = _Program("safe", omega0=1.0)
+    w = NumBaseVelocities(c.robot) - 1
+    col = np.asarray(c.program.layout.nu)[1, w]
+    top = c.robot.nu_upper[w]
+    seen = []
+
+    class Refusing:
+        def __init__(self, solver):
+            self.solver = solver
+
+        def Solve(self, point, *, upper, **kwargs):
+            seen.append(upper[col])
+            result = self.solver.Solve(point, upper=upper, **kwargs)
+            if upper[col] < top:
+                return dataclasses.replace(result, success=False, status="refused")
+            return result
+
+    solver = c.solver
+    solver.stage_solvers = [Refusing(s) for s in solver.stage_solvers]
+    targets = {t.name: np.asarray(t.target, dtype=float) for t in c.tasks}
+    q0, nu0 = c.robot.default_q.copy(), z[c.program.layout.nu[0]]
+    solution = solver.Solve(q0=q0, nu0=nu0, targets=targets, z_guess=z)
+    assert solution.success
+    assert seen[0] < top and seen[-1] == top

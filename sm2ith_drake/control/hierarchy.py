@@ -165,18 +165,29 @@ class HierarchicalSolver:
             # first stage (``cut``: that stage's plan already fails the
             # pass rule; ``cut_point`` is its point if the rule made one).
             early = targets if self.rti_early_pass_check and it + 1 < passes else None
-            z_pass, ok, why, pass_results, cut, cut_point = self._SolveHierarchy(
-                point,
-                lower,
-                upper,
-                early_targets=early,
-                warm_token=token,
-                damping=damping,
-            )
-            if iterations >= 0 and all(r.iterations >= 0 for r in pass_results):
-                iterations += sum(r.iterations for r in pass_results)
-            else:
-                iterations = -1  # the NLP solvers do not report iterations
+            for attempt in range(2):
+                z_pass, ok, why, pass_results, cut, cut_point = self._SolveHierarchy(
+                    point,
+                    lower,
+                    upper,
+                    early_targets=early,
+                    warm_token=token,
+                    damping=damping,
+                )
+                if iterations >= 0 and all(r.iterations >= 0 for r in pass_results):
+                    iterations += sum(r.iterations for r in pass_results)
+                else:
+                    iterations = -1  # the NLP solvers do not report iterations
+                if ok or attempt or it:
+                    break
+                # The turn monitoring's bounds (SafetyConfig.turn_monitoring)
+                # can leave the first pass infeasible (measured in doorway
+                # jams: the people's linearized KKT rows cannot all be met
+                # with the turn held); the step then goes without them.
+                plain = program.VariableBounds(q0, nu0, turn=False)
+                if np.array_equal(plain[0], lower) and np.array_equal(plain[1], upper):
+                    break
+                lower, upper = plain
             if not ok:
                 if it == 0:
                     success, status, results = False, why, pass_results

@@ -220,8 +220,9 @@ class MpcProgram:
         change only with the predictor's neighbour sets)."""
         return getattr(self.predictor, "pattern_key", b"")
 
-    def VariableBounds(self, q0: np.ndarray, nu0: np.ndarray):
-        """Variable bounds with the initial condition (eq. htmpc_init) pinned."""
+    def VariableBounds(self, q0: np.ndarray, nu0: np.ndarray, turn: bool = True):
+        """Variable bounds with the initial condition (eq. htmpc_init) pinned;
+        with ``turn`` False, without the turn monitoring's bounds."""
         L = self.layout
         lower = self.variable_lower.copy()
         upper = self.variable_upper.copy()
@@ -248,7 +249,7 @@ class MpcProgram:
                     self.time_step,
                     self.predictor.extra_active,
                 )
-            if self.turn_monitoring is not None:
+            if self.turn_monitoring is not None and turn:
                 self._LimitTurn(lower, upper, q0, nu0)
         return lower, upper
 
