@@ -137,11 +137,11 @@ class SafetyConfig:
     # |ω| ≤ √(2αθ), θ the last clear angle of its braking sweep, but
     # never below turn_speed_floor (rad/s). Measured on 2026-11-29 on
     # SM²ITH's `safe` runs among ORCA people, 30 seeds, 420 runs
-    # (docs/experiments/turn-monitoring): with a floor of 0.4 the robot
-    # closed in during a contact in 40 runs against 56 (-0.038 [-0.067,
-    # -0.010]), arrivals 371 against 372; with 0.2 the Stretch 3's doorway
-    # lost arrivals (65 against 75 of 120). Off by default until every
-    # method's `safe` studies are re-run with it.
+    # (docs/experiments/turn-monitoring): the robot closed in during a
+    # contact in 39 runs against 56, arrivals 370 against 372, but 41
+    # failed steps (fallbacks) against none, in doorway jams. Off by
+    # default until those are fixed and every method's `safe` studies
+    # are re-run with it.
     turn_monitoring: bool = False
     turn_speed_floor: float = 0.4
     # Hold the guard over at least the base's stopping time (not in the
