@@ -178,16 +178,13 @@ class HierarchicalSolver:
                     iterations += sum(r.iterations for r in pass_results)
                 else:
                     iterations = -1  # the NLP solvers do not report iterations
-                if ok or attempt or it:
-                    break
                 # The turn monitoring's bounds (SafetyConfig.turn_monitoring)
                 # can leave the first pass infeasible (measured in doorway
                 # jams: the people's linearized KKT rows cannot all be met
                 # with the turn held); the step then goes without them.
-                plain = program.VariableBounds(q0, nu0, turn=False)
-                if np.array_equal(plain[0], lower) and np.array_equal(plain[1], upper):
+                if ok or attempt or it or program.TurnBounds(q0, nu0) is None:
                     break
-                lower, upper = plain
+                lower, upper = program.VariableBounds(q0, nu0, turn=False)
             if not ok:
                 if it == 0:
                     success, status, results = False, why, pass_results

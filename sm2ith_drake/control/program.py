@@ -201,6 +201,7 @@ class MpcProgram:
         self.turn_monitoring = (
             safety if safety.turn_monitoring and safety.mode == "safe" else None
         )
+        self._turn_bounds = None  # (the state's bytes, TurnBounds of it)
         # Joint bounds that follow full braking where a joint cannot stop
         # before its limit (see _WidenForBraking); False only to show that
         # the QP is infeasible without them.
@@ -267,6 +268,18 @@ class MpcProgram:
                 predictor.extra_p0[predictor.extra_active],
             ]
         )
+        # A step asks twice (the warm start, then the stage QPs' bounds) for
+        # the same state: the answer, a pure function of it, is kept once.
+        key = b"".join(np.asarray(a, dtype=float).tobytes() for a in (q0, nu0, people))
+        if self._turn_bounds is not None and self._turn_bounds[0] == key:
+            return self._turn_bounds[1]
+        bounds = self._TurnBounds(q0, nu0, people)
+        self._turn_bounds = (key, bounds)
+        return bounds
+
+    def _TurnBounds(self, q0, nu0, people):
+        """TurnBounds, computed (control/separation.py)."""
+        safety = self.turn_monitoring
         limits = TurnLimits(
             self.robot,
             q0,
