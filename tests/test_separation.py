@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from sm2ith_drake.control.mpc_controller import MpcController
+from sm2ith_drake.control.prediction.orca_kkt import PredictionConsistency
 from sm2ith_drake.control.separation import SWEEP_SAMPLES, TurnLimits
 from sm2ith_drake.humans.messages import HumanEstimate
 from sm2ith_drake.robots import MobileManipulator
@@ -144,7 +145,7 @@ def test_the_bounds_follow_braking_from_a_faster_measured_turn():
     assert np.all(low == -robot.nu_upper[w])
 
 
-def _Program(mode, monitoring=True, omega0=0.0):
+def _Program(mode, monitoring=True, omega0=0.0, predictor="cvmm"):
     """The yaw rate's upper bounds at every knot, and its top rate, of a
     Stretch 3 controller with a person just inside the margin, CCW of its
     gripper."""
@@ -153,7 +154,7 @@ def _Program(mode, monitoring=True, omega0=0.0):
         robot,
         [TaskConfig(kind="base_position", target=[2.0, 0.0])],
         ControllerConfig(horizon=6),
-        prediction=PredictionConfig(predictor="cvmm", max_humans=1),
+        prediction=PredictionConfig(predictor=predictor, max_humans=1),
         safety=SafetyConfig(mode=mode, turn_monitoring=monitoring),
     )
     q0 = robot.default_q.copy()
@@ -201,6 +202,20 @@ def test_the_warm_start_keeps_within_the_bounds():
     np.testing.assert_allclose(nu[1:] - nu[:-1], c.program.time_step * u, atol=1e-12)
     w = NumBaseVelocities(c.robot) - 1
     assert nu[1, w] < 1.0
+
+
+def test_the_warm_start_predicts_the_people_along_the_bounded_turn():
+    """The HumanPredictor simulated the person along the unbounded rollout;
+    the warm start brakes the turn, so its people are simulated again: the
+    predicted actions re-solve the person's relaxed-ORCA QPs along the
+    bounded plan. (Left as predicted, they do not, and the stage QPs
+    linearized there were primal infeasible in the doorway.)"""
+    c, z, _, _ = _Program("safe", omega0=1.0, predictor="orca_kkt")
+    L = c.program.layout
+    assert np.max(PredictionConsistency(c.predictor, z, L)) < 1e-6
+    stale = z.copy()
+    c.predictor.WarmStart(stale)  # the prediction's people, robot as in z
+    assert np.max(PredictionConsistency(c.predictor, stale, L)) > 1e-3
 
 
 def test_a_step_the_turn_bounds_leave_infeasible_goes_without_them():

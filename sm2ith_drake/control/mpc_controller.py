@@ -236,13 +236,8 @@ class MpcController:
     @PROFILER.Timed("warm_start")
     def WarmStart(self, state: ControllerState, q0, nu0) -> np.ndarray:
         """The previous plan's inputs shifted by one period, rolled out from
-        the measured state within the turn monitoring's bounds (outside them
-        stage QPs were infeasible), with the predictor's humans along it."""
-        bounds = self.program.TurnBounds(q0, nu0)
-        z = self.program.Rollout(q0, nu0, self.WarmStartInputs(state), bounds)
-        if self.predictor is not None:
-            self.predictor.WarmStart(z)
-        return z
+        the measured state, with the humans along it (MpcProgram.WarmStart)."""
+        return self.program.WarmStart(q0, nu0, self.WarmStartInputs(state))
 
     def WarmStartInputs(self, state: ControllerState) -> np.ndarray:
         """The robot inputs the next step starts from (WarmStartInputs)."""

@@ -367,6 +367,27 @@ class MpcProgram:
         )
         return z
 
+    def WarmStart(self, q0, nu0, inputs: np.ndarray) -> np.ndarray:
+        """The guess z a step starts from: the inputs (N, m) rolled out from
+        the measured state within TurnBounds (outside them the stage QPs
+        were infeasible), with the predictor's humans along it.
+
+        The HumanPredictor simulated the people along the unbounded rollout.
+        Where the bounds change the robot's, the people are simulated again
+        along it (Predictor.Restore): linearized at the people's responses
+        to another robot plan, the KKT rows made the stage QPs primal
+        infeasible (doorway, Stretch 3: 41 steps in 30 runs)."""
+        bounds = self.TurnBounds(q0, nu0)
+        z = self.Rollout(q0, nu0, inputs, bounds)
+        bounded = bounds is not None and not np.array_equal(
+            z, self.Rollout(q0, nu0, inputs)
+        )
+        if self.predictor is not None:
+            self.predictor.WarmStart(z)
+            if bounded:
+                self.predictor.Restore(z)
+        return z
+
     def ConstraintGroups(self) -> list[tuple[ConstraintGroup, np.ndarray, np.ndarray]]:
         """The (group, lower, upper) rows every stage shares."""
         out = [
