@@ -135,14 +135,13 @@ class SafetyConfig:
     # tracked person the yaw rate is bounded so that every body could stop
     # turning before it reaches the person's margin (turning away is free),
     # |ω| ≤ √(2αθ), θ the last clear angle of its braking sweep, but
-    # never below turn_speed_floor (rad/s). Measured on 2026-11-29 on
-    # SM²ITH's `safe` runs among ORCA people, 30 seeds, 420 runs
-    # (docs/experiments/turn-monitoring): the robot closed in during a
-    # contact in 39 runs against 56, arrivals 370 against 372, but 41
-    # failed steps (fallbacks) against none, in doorway jams. Off by
-    # default until those are fixed and every method's `safe` studies
-    # are re-run with it.
-    turn_monitoring: bool = False
+    # never below turn_speed_floor (rad/s). The default since 2026-11-29
+    # (twelfth session). Measured on SM²ITH's `safe` runs among ORCA
+    # people, 30 seeds, 420 runs, paired with it off
+    # (docs/experiments/turn-monitoring/seeds-30-restore): runs with
+    # contact 86 against 100, the robot closing in during a contact 44
+    # against 56, arrivals 370 against 372, 1 failed step against none.
+    turn_monitoring: bool = True
     turn_speed_floor: float = 0.4
     # Hold the guard over at least the base's stopping time (not in the
     # paper): max(guard_steps, ⌈stopping time / time_step⌉) steps, where the

@@ -23,7 +23,12 @@ _spec.loader.exec_module(hold)
 
 later = [
     (sub, study, base)
-    for sub in ("seeds-30-floor-0.4", "seeds-30-fixed", "seeds-30-retry")
+    for sub in (
+        "seeds-30-floor-0.4",
+        "seeds-30-fixed",
+        "seeds-30-retry",
+        "seeds-30-restore",
+    )
     for _, study, base in hold.PARTS[3:]
 ]
 hold.CompareAll(HERE, hold.PARTS + later)
