@@ -20,3 +20,7 @@ for b in false true; do
   sm2ith bench --robot all --humans 10 --steps 200 --json "$OUT/${name}_10p.json" \
     --scenario_text "{safety: {turn_monitoring: $b}}" > "$OUT/${name}_10p.txt" 2>&1
 done
+# Then, on 89b0a40 (the monitoring on by default): a third 3-person run and
+# one with 0 people.
+sm2ith bench --robot all --humans 3 --steps 200 --json "$OUT/default_3p_3.json" > "$OUT/default_3p_3.txt" 2>&1
+sm2ith bench --robot all --humans 0 --steps 200 --json "$OUT/default_0p.json" > "$OUT/default_0p.txt" 2>&1
