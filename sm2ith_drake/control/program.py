@@ -377,11 +377,16 @@ class MpcProgram:
         along it (Predictor.Restore): linearized at the people's responses
         to another robot plan, the KKT rows made the stage QPs primal
         infeasible (doorway, Stretch 3: 41 steps in 30 runs)."""
+        z = self.Rollout(q0, nu0, inputs)
         bounds = self.TurnBounds(q0, nu0)
-        z = self.Rollout(q0, nu0, inputs, bounds)
-        bounded = bounds is not None and not np.array_equal(
-            z, self.Rollout(q0, nu0, inputs)
+        # The bounds lie within the velocity limits: a rollout that keeps
+        # within them is the bounded rollout too (no clip is ever active).
+        nu = z[self.layout.nu][1:]
+        bounded = bounds is not None and (
+            np.any(nu < bounds[0][1:]) or np.any(nu > bounds[1][1:])
         )
+        if bounded:
+            z = self.Rollout(q0, nu0, inputs, bounds)
         if self.predictor is not None:
             self.predictor.WarmStart(z)
             if bounded:

@@ -24,3 +24,7 @@ done
 # one with 0 people.
 sm2ith bench --robot all --humans 3 --steps 200 --json "$OUT/default_3p_3.json" > "$OUT/default_3p_3.txt" 2>&1
 sm2ith bench --robot all --humans 0 --steps 200 --json "$OUT/default_0p.json" > "$OUT/default_0p.txt" 2>&1
+# After the review (one rollout in the warm start where the unbounded one
+# keeps within the turn bounds): the same QP iterations.
+sm2ith bench --robot all --humans 3 --steps 200 --json "$OUT/review_3p.json" > "$OUT/review_3p.txt" 2>&1
+sm2ith bench --robot all --humans 10 --steps 200 --json "$OUT/review_10p.json" > "$OUT/review_10p.txt" 2>&1
