@@ -170,6 +170,17 @@ class ControllerConfig:
     # (Stretch 3); 10 people 172.0–172.9 → 89.6–90.5 ms and 132.5–133.3 →
     # 97.0–97.1 ms.
     lazy_barrier_distance: float = 0.5
+    # A budget of QP iterations per control step (0: none), as SICNav's
+    # acados controller caps its QP iterations to stay real time. The first
+    # stage of the first pass is never cut short (its plan meets every hard
+    # constraint); every later QP may use what is left of the budget. A
+    # lower stage that runs out leaves the plan of the stages above it
+    # ("solved through": the hard constraints and the higher priorities
+    # hold, the lower tasks go unoptimized for that step), a later pass that
+    # runs out keeps the previous pass's plan, and no pass starts once the
+    # budget is spent. Counted in iterations, not seconds, so that a run
+    # reproduces from a cloned Context.
+    qp_iteration_budget: int = 0
     # Slack added to |e*| in the lexicographic constraints (eq. stmpc_lex_constr).
     lexicographic_tolerance: float = 1e-3
     # J_eff = ½ Σ w_ν‖ν_k‖² + w_u‖u_k‖².
@@ -198,6 +209,7 @@ SOLVER_SETTINGS = (
     "rti_later_pass_damping",
     "qp_solver",
     "lazy_barrier_distance",
+    "qp_iteration_budget",
 )
 
 

@@ -454,3 +454,60 @@ def test_a_later_pass_is_damped_harder_and_stays_nearer_its_point(monkeypatch):
     assert distances[1] <= distances[0] + 1e-6
     assert distances[2] <= distances[1] + 1e-6
     assert distances[2] < distances[0]
+
+
+def test_the_qp_iteration_budget_cuts_the_lower_stages_not_the_first():
+    """controller.qp_iteration_budget: the first pass's first stage is
+    solved whatever the budget; a lower stage gets what is left and, out of
+    it, leaves the plan of the stage above ("solved through"); no pass
+    starts once the budget is spent. A budget the step does not reach
+    changes nothing."""
+    text = "{controller: {qp_solver: piqp, rti_iterations: 2}}"
+    scenario = LoadScenario(
+        filename=CONFLICT, scenario_name="conflict_ee_over_base", scenario_text=text
+    )
+    robot = MakeRobot(scenario)
+    q0 = np.array(robot.default_q, dtype=float)
+    nu0 = np.zeros(robot.num_velocities)
+
+    def Solve(budget):
+        scenario.controller.qp_iteration_budget = budget
+        controller = MpcController(robot, scenario.tasks, scenario.controller)
+        targets = {t.name: np.asarray(t.target, dtype=float) for t in controller.tasks}
+        recording = _RecordingStageSolver(controller.solver.stage_solvers[0])
+        controller.solver.stage_solvers[0] = recording
+        z0 = controller.WarmStart(controller.InitialState(), q0, nu0)
+        sol = controller.solver.Solve(q0=q0, nu0=nu0, targets=targets, z_guess=z0)
+        return sol, recording.plans
+
+    full, _ = Solve(0)
+    assert full.success and full.status == "solved" and full.passes == 2
+    unreached, _ = Solve(full.iterations + 1)
+    assert unreached.passes == 2
+    np.testing.assert_array_equal(unreached.z, full.z)
+
+    # Nothing left after the first stage: its plan, one pass.
+    tight, ee_plans = Solve(1)
+    assert tight.success and tight.passes == 1
+    assert tight.status == (
+        "solved through 'ee_position' (stage 'base_position': "
+        "QP iteration budget spent)"
+    )
+    assert len(ee_plans) == 1
+    np.testing.assert_array_equal(tight.z, ee_plans[0])
+    spent = tight.iterations
+    assert spent > 0
+
+    # A few iterations left: the base stage stops at them.
+    cut, _ = Solve(spent + 3)
+    assert cut.success and cut.passes == 1
+    assert cut.status.startswith("solved through 'ee_position'")
+    assert cut.iterations == spent + 3
+
+    # Enough for the first pass only: its plan, no second pass.
+    scenario.controller.rti_iterations = 1
+    first_pass, _ = Solve(0)
+    scenario.controller.rti_iterations = 2
+    budgeted, _ = Solve(first_pass.iterations)
+    assert budgeted.status == "solved" and budgeted.passes == 1
+    np.testing.assert_array_equal(budgeted.z, first_pass.z)

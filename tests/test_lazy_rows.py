@@ -120,3 +120,23 @@ def test_a_qp_not_solved_without_the_lazy_rows_is_solved_with_every_row():
     _, status, iterations = ws.Solve(*args, lazy_rows=lazy)
     assert status == "max_iter_reached" and iterations == 4
     assert calls[0] is not None and calls[1] is None
+
+
+def test_an_iteration_cap_holds_over_every_round_and_leaves_the_settings():
+    """``max_iterations`` caps PIQP's iterations over the lazy rounds and
+    the every-row solve together; the next solve without a cap solves the
+    QP as before (PIQP's own max_iter restored)."""
+    ws, args, _, _ = _RandomQp(np.random.default_rng(0), {})
+    x_full, status, full = ws.Solve(*args)
+    assert status == "solved" and full > 3
+    x_again, status, iterations = ws.Solve(
+        *args, lazy_rows=np.ones(ROWS, dtype=bool), max_iterations=3
+    )
+    assert status == "max_iter_reached" and iterations == 3
+    x_after, status, after = ws.Solve(*args)
+    assert status == "solved" and after == full
+    np.testing.assert_array_equal(x_after, x_full)
+    # A cap above what the QP needs changes nothing.
+    x_capped, status, capped = ws.Solve(*args, max_iterations=full + 1)
+    assert status == "solved" and capped == full
+    np.testing.assert_array_equal(x_capped, x_full)

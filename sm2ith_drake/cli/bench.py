@@ -57,7 +57,8 @@ def _PrintRun(r: dict) -> None:
         f"p99 {r['p99_ms']:.1f} ms  max {r['max_ms']:.1f} ms  "
         f"first step {r['first_step_ms']:.1f} ms  setup {r['setup_ms']:.0f} ms  "
         f"mean iterations {iters}  "
-        f"failures {r['solver_failures']}  fallbacks {r['fallbacks']}"
+        f"failures {r['solver_failures']}  fallbacks {r['fallbacks']}  "
+        f"solved through {r['solved_through']}"
     )
 
 

@@ -30,6 +30,10 @@ from sm2ith_drake.control.stage_problem import (
 )
 from sm2ith_drake.scenario import WARM_STARTS
 
+# The status of a stage that the step's QP iteration budget left no
+# iterations (HierarchicalSolver's qp_iteration_budget).
+BUDGET_SPENT = "QP iteration budget spent"
+
 
 @dataclass
 class MpcSolution:
@@ -81,6 +85,7 @@ class HierarchicalSolver:
         rti_later_pass_damping: float = 1.0,
         qp_solver: str = "piqp",
         lazy_barrier_distance: float = 0.0,
+        qp_iteration_budget: int = 0,
     ):
         self.program = program
         self.method = method
@@ -94,6 +99,11 @@ class HierarchicalSolver:
             raise ValueError(f"rti_warm_start must be one of {WARM_STARTS}")
         self.rti_warm_start = rti_warm_start
         self.rti_later_pass_damping = float(rti_later_pass_damping)
+        # ControllerConfig.qp_iteration_budget (None: no budget; the NLP
+        # solvers take none).
+        self.qp_iteration_budget = (
+            (int(qp_iteration_budget) or None) if solver == "rti" else None
+        )
         self.stages = MakeStages(program.tasks, method)
         options = solver_options if solver_options is not None else SolverOptions()
         if solver == "rti":
@@ -125,6 +135,9 @@ class HierarchicalSolver:
         stage below the first that fails leaves the plan of the stages above
         it (status "solved through ...": every hard constraint and the higher
         priorities hold; only the lower tasks go unoptimized for that step).
+        With ``qp_iteration_budget``, every QP but the first pass's first
+        gets what is left of the step's budget, and one that has nothing
+        left fails that way.
         """
         start = time.perf_counter()
         program = self.program
@@ -149,7 +162,10 @@ class HierarchicalSolver:
         # (the first pass, and an ordinary SQP pass: after a safety
         # violation, with rti_prediction_tolerance 0, or nobody predicted).
         damping = 1.0
+        budget = self.qp_iteration_budget
         for it in range(passes):
+            if budget is not None and it > 0 and iterations >= budget:
+                break  # no budget left for another pass
             if it > 0 and program.predictor is not None:
                 # The next linearization point: this pass's robot plan with
                 # the humans' exact responses to it (see Predictor.Restore).
@@ -173,6 +189,7 @@ class HierarchicalSolver:
                     early_targets=early,
                     warm_token=token,
                     damping=damping,
+                    budget=None if budget is None else (budget - iterations, it == 0),
                 )
                 if iterations >= 0 and all(r.iterations >= 0 for r in pass_results):
                     iterations += sum(r.iterations for r in pass_results)
@@ -239,11 +256,20 @@ class HierarchicalSolver:
         return violation <= self.rti_constraint_tolerance, point, False
 
     def _SolveHierarchy(
-        self, point, lower, upper, early_targets=None, warm_token=None, damping=1.0
+        self,
+        point,
+        lower,
+        upper,
+        early_targets=None,
+        warm_token=None,
+        damping=1.0,
+        budget=None,
     ):
         """One pass of every stage at one linearization point. With
         ``early_targets``, the pass rule (:meth:`_Converged`) is applied to
         the first stage's plan, and a plan that fails it ends the pass there.
+        ``budget``: (QP iterations left for the pass, whether its first stage
+        is exempt), or None.
         Returns (z, ok, status, results, cut, point): cut says the pass
         ended early, point is then the LinearizationPoint the rule made of
         z (or None)."""
@@ -252,16 +278,26 @@ class HierarchicalSolver:
         results: list[StageResult] = []
         z = point.z
         for stage, solver in zip(self.stages, self.stage_solvers, strict=True):
-            result = solver.Solve(
-                point,
-                lower=lower,
-                upper=upper,
-                lex_bounds=lex_bounds,
-                linearizations=linearizations,
-                warm_token=warm_token,
-                guess=point.z if self.rti_warm_start == "point" else None,
-                damping=damping,
-            )
+            cap = {}
+            if budget is not None and not (budget[1] and not results):
+                left = budget[0] - sum(max(r.iterations, 0) for r in results)
+                cap = dict(max_iterations=left)
+            if cap and cap["max_iterations"] <= 0:
+                result = StageResult(
+                    z=None, success=False, status=BUDGET_SPENT, iterations=0
+                )
+            else:
+                result = solver.Solve(
+                    point,
+                    lower=lower,
+                    upper=upper,
+                    lex_bounds=lex_bounds,
+                    linearizations=linearizations,
+                    warm_token=warm_token,
+                    guess=point.z if self.rti_warm_start == "point" else None,
+                    damping=damping,
+                    **cap,
+                )
             results.append(result)
             if not result.success:
                 why = f"stage '{stage.name}': {result.status}"

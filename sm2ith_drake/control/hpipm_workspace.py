@@ -136,8 +136,11 @@ class HpipmWorkspace:
     def Solve(self, p_values, q, a_values, x_lower, x_upper, lower, upper, **start):
         """As PiqpWorkspace.Solve. Returns (x, status, iterations).
         ``start``: warm_token, guess (see HpipmStageQp.Solve; PIQP starts
-        cold), lazy_rows (PIQP's only: HPIPM solves with every row)."""
+        cold), lazy_rows and max_iterations (PIQP's only: HPIPM solves with
+        every row, in at most its own iter_max; a QP it hands to PIQP gets
+        what HPIPM left of max_iterations)."""
         lazy_rows = start.pop("lazy_rows", None)
+        cap = start.pop("max_iterations", None)
         pinned = x_lower == x_upper
         finite = tuple(np.isfinite(v) for v in (x_lower, x_upper, lower, upper))
         key = (pinned.tobytes(),) + tuple(f.tobytes() for f in finite)
@@ -152,7 +155,9 @@ class HpipmWorkspace:
             args = (q, a_values, x_lower, x_upper, lower, upper)
             if structure is _USE_PIQP:
                 piqp, order = self._Piqp()
-                return piqp.Solve(p_values[order], *args, lazy_rows=lazy_rows)
+                return piqp.Solve(
+                    p_values[order], *args, lazy_rows=lazy_rows, max_iterations=cap
+                )
             auto = self._piqp_settings is not None
             try:
                 z, status, iterations = structure.Solve(
@@ -168,8 +173,9 @@ class HpipmWorkspace:
                 # A QP HPIPM's fast mode did not solve (1–3 % with 3 + 7
                 # people): PIQP, cheaper than HPIPM's balanced mode.
                 piqp, order = self._Piqp()
+                left = None if cap is None else cap - iterations
                 z, status, more = piqp.Solve(
-                    p_values[order], *args, lazy_rows=lazy_rows
+                    p_values[order], *args, lazy_rows=lazy_rows, max_iterations=left
                 )
                 iterations += more
             return z, status, iterations

@@ -211,6 +211,7 @@ class PiqpWorkspace:
         warm_token=None,
         guess=None,
         lazy_rows=None,
+        max_iterations=None,
     ) -> tuple[np.ndarray | None, str, int]:
         """Solves with P's values in :attr:`p_pattern` order, the constraint
         values in ``a_pattern`` order and the constraint rows' bounds
@@ -231,6 +232,10 @@ class PiqpWorkspace:
         the lazy rows is solved again with every row. An updated workspace
         (``reuse_workspace``) needs the fixed pattern: it keeps every row.
 
+        ``max_iterations``, optional: PIQP's iterations over all the rounds
+        (each round at most PIQP's ``max_iter``); a QP not solved within
+        them fails (or counts as solved: see NearlySolved).
+
         Returns (x, status, iterations); x is None if nothing usable."""
         lazy = None
         if lazy_rows is not None and not self.reuse_workspace:
@@ -240,8 +245,11 @@ class PiqpWorkspace:
         for round_ in range(LAZY_ROUNDS + 1):
             if lazy is not None and (not lazy.any() or round_ == LAZY_ROUNDS):
                 lazy = None  # every row
+            left = None if max_iterations is None else max_iterations - total
+            if left is not None and left <= 0:
+                return None, "max_iter_reached", total
             x, status, iterations = self._Solve(
-                p_values, q, a_values, x_lower, x_upper, lower, upper, lazy
+                p_values, q, a_values, x_lower, x_upper, lower, upper, lazy, left
             )
             total += iterations
             if lazy is None:
@@ -270,10 +278,20 @@ class PiqpWorkspace:
             lazy &= (value >= lower + LAZY_MARGIN) & (value <= upper - LAZY_MARGIN)
 
     def _Solve(
-        self, p_values, q, a_values, x_lower, x_upper, lower, upper, dropped=None
+        self,
+        p_values,
+        q,
+        a_values,
+        x_lower,
+        x_upper,
+        lower,
+        upper,
+        dropped=None,
+        max_iterations=None,
     ):
         """One PIQP solve of the QP without the inequality rows ``dropped``
-        (num_rows,) bool (None: none; see Solve)."""
+        (num_rows,) bool (None: none; see Solve), in at most
+        ``max_iterations`` (None: PIQP's ``max_iter``)."""
         P = sp.csc_matrix((p_values, self._p_indices, self._p_indptr), (self.n, self.n))
         A = self._Matrix(a_values, self._blocks[0])
         G = self._Matrix(a_values, self._blocks[1])
@@ -298,13 +316,18 @@ class PiqpWorkspace:
                     if key == "kkt_solver" and isinstance(value, str):
                         value = getattr(self._piqp.KKTSolver, value)
                     setattr(solver.settings, key, value)
+                self._max_iter = solver.settings.max_iter
                 with PROFILER.Phase("piqp_setup"):
                     solver.setup(P, q, A, b, G, h_l, h_u, x_lower, x_upper)
                 self._solver = solver
             else:
+                self._solver.settings.max_iter = self._max_iter
                 self._solver.update(
                     P=P, c=q, A=A, b=b, G=G, h_l=h_l, h_u=h_u, x_l=x_lower, x_u=x_upper
                 )
+            if max_iterations is not None:
+                settings = self._solver.settings
+                settings.max_iter = min(settings.max_iter, int(max_iterations))
             with PROFILER.Phase("piqp_solve"):
                 timings = PROFILER.enabled
                 if timings:

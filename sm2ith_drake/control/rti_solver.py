@@ -204,11 +204,13 @@ class RtiStageSolver:
         warm_token=None,
         guess=None,
         damping=1.0,
+        max_iterations=None,
     ) -> StageResult:
         """One QP at ``point``. ``lex_bounds`` maps task names to |e*| + tol;
         ``linearizations`` caches (values, c) per group for this point;
         ``warm_token``, ``guess`` (a primal starting point over z): see
-        HpipmStageQp.Solve; ``damping`` multiplies the proximal weight."""
+        HpipmStageQp.Solve; ``damping`` multiplies the proximal weight;
+        ``max_iterations`` caps PIQP's iterations (see PiqpWorkspace.Solve)."""
         program, problem, nv = self.program, self._problem, self._nv
         self._UseStructure()
 
@@ -277,6 +279,7 @@ class RtiStageSolver:
             warm_token=warm_token,
             guess=guess,
             lazy_rows=lazy_rows,
+            max_iterations=max_iterations,
         )
         if lazy_rows is not None:
             # The rows the solve put back stay in the later QPs at this point

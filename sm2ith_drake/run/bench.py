@@ -140,6 +140,11 @@ def RunBenchmark(
         # is not a fallback (it is counted apart).
         "fallbacks": int(sum(r.mode not in ("solved", "filtered") for r in records)),
         "filtered": int(sum(r.mode == "filtered" for r in records)),
+        # Solved steps whose lower stages went unoptimized (a stage's QP
+        # failed, or controller.qp_iteration_budget ran out).
+        "solved_through": int(
+            sum(r.status.startswith("solved through") for r in records)
+        ),
         **(_Profile(steps) if profile else {}),
     }
 
