@@ -511,3 +511,29 @@ def test_the_qp_iteration_budget_cuts_the_lower_stages_not_the_first():
     budgeted, _ = Solve(first_pass.iterations)
     assert budgeted.status == "solved" and budgeted.passes == 1
     np.testing.assert_array_equal(budgeted.z, first_pass.z)
+
+
+@pytest.mark.skipif(not hpipm_library.Available(), reason="HPIPM not built")
+def test_the_qp_iteration_budget_counts_piqp_alone():
+    """HPIPM's QPs (few people) are capped by its own iter_max: a budget of
+    one PIQP iteration leaves a step that HPIPM solves as it was."""
+    plans = []
+    for budget in (0, 1):
+        text = (
+            "{controller: {qp_solver: auto, rti_iterations: 2, "
+            f"qp_iteration_budget: {budget}}}}}"
+        )
+        scenario = LoadScenario(
+            filename=CONFLICT, scenario_name="conflict_ee_over_base", scenario_text=text
+        )
+        robot = MakeRobot(scenario)
+        controller = MpcController(robot, scenario.tasks, scenario.controller)
+        targets = {t.name: np.asarray(t.target, dtype=float) for t in controller.tasks}
+        q0 = np.array(robot.default_q, dtype=float)
+        nu0 = np.zeros(robot.num_velocities)
+        z0 = controller.WarmStart(controller.InitialState(), q0, nu0)
+        sol = controller.solver.Solve(q0=q0, nu0=nu0, targets=targets, z_guess=z0)
+        assert sol.status == "solved" and sol.passes == 2
+        assert all(s.piqp_iterations == 0 for s in sol.stages)
+        plans.append(sol.z)
+    np.testing.assert_array_equal(plans[1], plans[0])

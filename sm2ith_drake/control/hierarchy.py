@@ -104,6 +104,8 @@ class HierarchicalSolver:
         self.qp_iteration_budget = (
             (int(qp_iteration_budget) or None) if solver == "rti" else None
         )
+        self._spent = 0  # (Solve's count)
+        self._pass_iterations = 0  # (_SolveHierarchy's)
         self.stages = MakeStages(program.tasks, method)
         options = solver_options if solver_options is not None else SolverOptions()
         if solver == "rti":
@@ -163,8 +165,11 @@ class HierarchicalSolver:
         # violation, with rti_prediction_tolerance 0, or nobody predicted).
         damping = 1.0
         budget = self.qp_iteration_budget
+        # PIQP's iterations in this step so far (the budget's count; reset
+        # here, so nothing carries over between steps).
+        self._spent = 0
         for it in range(passes):
-            if budget is not None and it > 0 and iterations >= budget:
+            if budget is not None and it > 0 and self._spent >= budget:
                 break  # no budget left for another pass
             if it > 0 and program.predictor is not None:
                 # The next linearization point: this pass's robot plan with
@@ -189,10 +194,12 @@ class HierarchicalSolver:
                     early_targets=early,
                     warm_token=token,
                     damping=damping,
-                    budget=None if budget is None else (budget - iterations, it == 0),
+                    budget=None if budget is None else (budget, it == 0),
                 )
-                if iterations >= 0 and all(r.iterations >= 0 for r in pass_results):
-                    iterations += sum(r.iterations for r in pass_results)
+                # (Every stage solved, a failed one's included.)
+                spent = self._pass_iterations
+                if iterations >= 0 and spent >= 0:
+                    iterations += spent
                 else:
                     iterations = -1  # the NLP solvers do not report iterations
                 # The turn monitoring's bounds (SafetyConfig.turn_monitoring)
@@ -268,8 +275,8 @@ class HierarchicalSolver:
         """One pass of every stage at one linearization point. With
         ``early_targets``, the pass rule (:meth:`_Converged`) is applied to
         the first stage's plan, and a plan that fails it ends the pass there.
-        ``budget``: (QP iterations left for the pass, whether its first stage
-        is exempt), or None.
+        ``budget``: (the step's budget of PIQP iterations, whether this
+        pass's first stage is exempt), or None.
         Returns (z, ok, status, results, cut, point): cut says the pass
         ended early, point is then the LinearizationPoint the rule made of
         z (or None)."""
@@ -277,11 +284,11 @@ class HierarchicalSolver:
         lex_bounds: dict = {}
         results: list[StageResult] = []
         z = point.z
+        self._pass_iterations = 0  # every stage's QP iterations (−1: unknown)
         for stage, solver in zip(self.stages, self.stage_solvers, strict=True):
             cap = {}
             if budget is not None and not (budget[1] and not results):
-                left = budget[0] - sum(max(r.iterations, 0) for r in results)
-                cap = dict(max_iterations=left)
+                cap = dict(max_iterations=budget[0] - self._spent)
             if cap and cap["max_iterations"] <= 0:
                 result = StageResult(
                     z=None, success=False, status=BUDGET_SPENT, iterations=0
@@ -298,6 +305,11 @@ class HierarchicalSolver:
                     damping=damping,
                     **cap,
                 )
+            self._spent += result.piqp_iterations
+            if self._pass_iterations >= 0 and result.iterations >= 0:
+                self._pass_iterations += result.iterations
+            else:
+                self._pass_iterations = -1
             results.append(result)
             if not result.success:
                 why = f"stage '{stage.name}': {result.status}"

@@ -109,6 +109,8 @@ class HpipmWorkspace:
         self.max_work = float(settings.pop("auto_max_work"))
         self._piqp_settings = piqp_settings
         self._piqp = None
+        # PIQP's iterations in the last Solve (a QP handed over; see Solve).
+        self.piqp_iterations = 0
         self.mode = settings.pop("mode")
         self.settings = settings
         self.kind, self.knot = roles
@@ -137,10 +139,11 @@ class HpipmWorkspace:
         """As PiqpWorkspace.Solve. Returns (x, status, iterations).
         ``start``: warm_token, guess (see HpipmStageQp.Solve; PIQP starts
         cold), lazy_rows and max_iterations (PIQP's only: HPIPM solves with
-        every row, in at most its own iter_max; a QP it hands to PIQP gets
-        what HPIPM left of max_iterations)."""
+        every row, in at most its own iter_max). ``piqp_iterations`` is then
+        PIQP's share of the iterations."""
         lazy_rows = start.pop("lazy_rows", None)
         cap = start.pop("max_iterations", None)
+        self.piqp_iterations = 0
         pinned = x_lower == x_upper
         finite = tuple(np.isfinite(v) for v in (x_lower, x_upper, lower, upper))
         key = (pinned.tobytes(),) + tuple(f.tobytes() for f in finite)
@@ -155,9 +158,11 @@ class HpipmWorkspace:
             args = (q, a_values, x_lower, x_upper, lower, upper)
             if structure is _USE_PIQP:
                 piqp, order = self._Piqp()
-                return piqp.Solve(
+                x, status, iterations = piqp.Solve(
                     p_values[order], *args, lazy_rows=lazy_rows, max_iterations=cap
                 )
+                self.piqp_iterations = iterations
+                return x, status, iterations
             auto = self._piqp_settings is not None
             try:
                 z, status, iterations = structure.Solve(
@@ -173,10 +178,10 @@ class HpipmWorkspace:
                 # A QP HPIPM's fast mode did not solve (1–3 % with 3 + 7
                 # people): PIQP, cheaper than HPIPM's balanced mode.
                 piqp, order = self._Piqp()
-                left = None if cap is None else cap - iterations
                 z, status, more = piqp.Solve(
-                    p_values[order], *args, lazy_rows=lazy_rows, max_iterations=left
+                    p_values[order], *args, lazy_rows=lazy_rows, max_iterations=cap
                 )
+                self.piqp_iterations = more
                 iterations += more
             return z, status, iterations
         except (ValueError, np.linalg.LinAlgError) as e:

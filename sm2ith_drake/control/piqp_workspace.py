@@ -187,6 +187,8 @@ class PiqpWorkspace:
             indptr = np.concatenate([[0], np.cumsum(np.bincount(c, minlength=self.n))])
             self._blocks.append((nz[order], r[order], indptr, sel.size))
         self._solver = None
+        # The last Solve's iterations (as HpipmWorkspace.piqp_iterations).
+        self.piqp_iterations = 0
 
     def _Matrix(self, a_values, block):
         perm, indices, indptr, rows = block
@@ -237,6 +239,26 @@ class PiqpWorkspace:
         them fails (or counts as solved: see NearlySolved).
 
         Returns (x, status, iterations); x is None if nothing usable."""
+        x, status, total = self._SolveLazily(
+            p_values, q, a_values, x_lower, x_upper, lower, upper, lazy_rows,
+            max_iterations,
+        )  # fmt: skip
+        self.piqp_iterations = total
+        return x, status, total
+
+    def _SolveLazily(
+        self,
+        p_values,
+        q,
+        a_values,
+        x_lower,
+        x_upper,
+        lower,
+        upper,
+        lazy_rows,
+        max_iterations,
+    ):
+        """Solve's rounds (see Solve)."""
         lazy = None
         if lazy_rows is not None and not self.reuse_workspace:
             lazy = lazy_rows

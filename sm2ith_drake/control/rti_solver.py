@@ -301,5 +301,10 @@ class RtiStageSolver:
         else:
             success = False
         return StageResult(
-            z=x, success=success, status=status, iterations=iters, errors=errors
+            z=x,
+            success=success,
+            status=status,
+            iterations=iters,
+            errors=errors,
+            piqp_iterations=self._qp.piqp_iterations,
         )

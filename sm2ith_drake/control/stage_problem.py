@@ -53,6 +53,9 @@ class StageResult:
     # solution, by task name, shape (N, s) for k = 1..N. For the RTI these
     # are the linearized errors the lexicographic constraints act on.
     errors: dict = field(default_factory=dict)
+    # Of ``iterations``, PIQP's (what ControllerConfig.qp_iteration_budget
+    # counts; HPIPM's QPs are capped by its own iter_max).
+    piqp_iterations: int = 0
 
 
 def LexicographicBounds(errors: np.ndarray, tolerance: float) -> np.ndarray:
