@@ -239,26 +239,14 @@ class PiqpWorkspace:
         them fails (or counts as solved: see NearlySolved).
 
         Returns (x, status, iterations); x is None if nothing usable."""
-        x, status, total = self._SolveLazily(
-            p_values, q, a_values, x_lower, x_upper, lower, upper, lazy_rows,
-            max_iterations,
-        )  # fmt: skip
+        qp = (p_values, q, a_values, x_lower, x_upper, lower, upper)
+        x, status, total = self._SolveLazily(qp, lazy_rows, max_iterations)
         self.piqp_iterations = total
         return x, status, total
 
-    def _SolveLazily(
-        self,
-        p_values,
-        q,
-        a_values,
-        x_lower,
-        x_upper,
-        lower,
-        upper,
-        lazy_rows,
-        max_iterations,
-    ):
-        """Solve's rounds (see Solve)."""
+    def _SolveLazily(self, qp, lazy_rows, max_iterations):
+        """Solve's rounds (see Solve); ``qp`` is its first seven arguments."""
+        a_values, lower, upper = qp[2], qp[5], qp[6]
         lazy = None
         if lazy_rows is not None and not self.reuse_workspace:
             lazy = lazy_rows
@@ -270,9 +258,7 @@ class PiqpWorkspace:
             left = None if max_iterations is None else max_iterations - total
             if left is not None and left <= 0:
                 return None, "max_iter_reached", total
-            x, status, iterations = self._Solve(
-                p_values, q, a_values, x_lower, x_upper, lower, upper, lazy, left
-            )
+            x, status, iterations = self._Solve(qp, lazy, left)
             total += iterations
             if lazy is None:
                 return x, status, total
@@ -299,21 +285,12 @@ class PiqpWorkspace:
                 return x, status, total
             lazy &= (value >= lower + LAZY_MARGIN) & (value <= upper - LAZY_MARGIN)
 
-    def _Solve(
-        self,
-        p_values,
-        q,
-        a_values,
-        x_lower,
-        x_upper,
-        lower,
-        upper,
-        dropped=None,
-        max_iterations=None,
-    ):
-        """One PIQP solve of the QP without the inequality rows ``dropped``
-        (num_rows,) bool (None: none; see Solve), in at most
-        ``max_iterations`` (None: PIQP's ``max_iter``)."""
+    def _Solve(self, qp, dropped=None, max_iterations=None):
+        """One PIQP solve of the QP ``qp`` (Solve's first seven arguments)
+        without the inequality rows ``dropped`` (num_rows,) bool (None: none;
+        see Solve), in at most ``max_iterations`` (None: PIQP's
+        ``max_iter``)."""
+        p_values, q, a_values, x_lower, x_upper, lower, upper = qp
         P = sp.csc_matrix((p_values, self._p_indices, self._p_indptr), (self.n, self.n))
         A = self._Matrix(a_values, self._blocks[0])
         G = self._Matrix(a_values, self._blocks[1])
