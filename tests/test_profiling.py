@@ -186,3 +186,16 @@ def test_bench_cli_repeats_in_rounds_and_prints_the_spread(tmp_path, capsys):
         assert f"median {low:.1f}–{high:.1f} ms" in line
         assert "the same plans" in line  # the runs are deterministic
     assert main(["bench", "--repeat", "0"]) == 2
+
+
+def test_bench_counts_the_steps_the_qp_iteration_budget_cut():
+    """``solved_through``: every step of a budget that only the exempt
+    first stage fits has its lower stage left unoptimized (no failure, no
+    fallback); without a budget, none."""
+    text = "{controller: {qp_solver: piqp, qp_iteration_budget: %d}}"
+    cut = RunBenchmark(robot="stretch3", humans=1, steps=3, scenario_text=text % 1)
+    assert cut["solved_through"] == cut["steps"] == 3
+    assert cut["solver_failures"] == 0 and cut["fallbacks"] == 0
+    whole = RunBenchmark(robot="stretch3", humans=1, steps=3, scenario_text=text % 0)
+    assert whole["solved_through"] == 0
+    assert whole["mean_iterations"] > cut["mean_iterations"]
