@@ -736,6 +736,7 @@ def test_sigint_sends_one_final_stop_command():
     assert summary["ended_by"] == "signal"
     assert summary["time"] < 30.0
     assert summary["final_command"]["mode"] == "stop"
+    assert summary["controller"]["solved_through"] == 0
     # The final stop went out on the bus after everything else.
     lcm.HandleSubscriptions(0)
     listener_sim.AdvanceTo(1.0)

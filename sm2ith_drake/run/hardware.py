@@ -139,7 +139,12 @@ def _ControllerFigures(diagram, root) -> dict:
     records = [r for r in log.records if r.mode != "none"]
     # The first step includes the solver's setup.
     steady = records[1:] if len(records) > 1 else records
-    out = {"steps": len(records)}
+    out = {
+        "steps": len(records),
+        # Solved steps whose lower stages went unoptimized (a lower stage's
+        # QP failed, or controller.qp_iteration_budget ran out).
+        "solved_through": sum(r.status.startswith("solved through") for r in records),
+    }
     for key, attr in (("solve_ms", "solve_time"), ("step_ms", "wall_time")):
         values = np.array([getattr(r, attr) for r in steady]) * 1e3
         out[key] = (
@@ -207,6 +212,7 @@ def _StatusLine(diagram, root, timing: CommandTiming) -> str:
         f"commands {t['commands']} {t['modes']}",
         f"control jitter p95 {ms(t['control_jitter_ms'], 'p95')} ms",
         f"latency {ms(t['latency_ms'])} ms (solve {ms(ctrl['solve_ms'])} ms)",
+        f"lower stages cut {ctrl['solved_through']}",
         f"gate: {hw['gate']['mode']}",
     ]
     people = _People(diagram, root)
