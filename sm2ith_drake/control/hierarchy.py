@@ -33,6 +33,43 @@ from sm2ith_drake.scenario import WARM_STARTS
 # The status of a stage that the step's QP iteration budget left no
 # iterations (HierarchicalSolver's qp_iteration_budget).
 BUDGET_SPENT = "QP iteration budget spent"
+# How the status of a step whose lower stages went unoptimized begins.
+SOLVED_THROUGH = "solved through"
+
+
+def SolvedThrough(status: str) -> bool:
+    """Whether a step's status says its lower stages went unoptimized (a
+    lower stage's QP failed, or the QP iteration budget ran out)."""
+    return status.startswith(SOLVED_THROUGH)
+
+
+@dataclass
+class _StepTally:
+    """One control step's QP iterations, over its passes: all of them (−1
+    once a stage solver reports none: the NLP solvers) and PIQP's, which
+    ``budget`` (ControllerConfig.qp_iteration_budget; None: none) caps."""
+
+    budget: int | None
+    iterations: int = 0
+    piqp: int = 0
+
+    def Add(self, result: StageResult) -> None:
+        if self.iterations >= 0 and result.iterations >= 0:
+            self.iterations += result.iterations
+        else:
+            self.iterations = -1
+        self.piqp += result.piqp_iterations
+
+    def Spent(self) -> bool:
+        """Whether the budget is spent (never without one)."""
+        return self.budget is not None and self.piqp >= self.budget
+
+    def Cap(self, exempt: bool) -> dict:
+        """The stage solver's keyword for what is left of the budget ({}:
+        uncapped, without a budget or for an ``exempt`` stage)."""
+        if self.budget is None or exempt:
+            return {}
+        return dict(max_iterations=self.budget - self.piqp)
 
 
 @dataclass
@@ -104,8 +141,6 @@ class HierarchicalSolver:
         self.qp_iteration_budget = (
             (int(qp_iteration_budget) or None) if solver == "rti" else None
         )
-        self._spent = 0  # (Solve's count)
-        self._pass_iterations = 0  # (_SolveHierarchy's)
         self.stages = MakeStages(program.tasks, method)
         options = solver_options if solver_options is not None else SolverOptions()
         if solver == "rti":
@@ -150,7 +185,7 @@ class HierarchicalSolver:
         z = z_guess
         passes_run = 0
         results: list[StageResult] = []
-        success, status, iterations = True, "solved", 0
+        success, status = True, "solved"
         # The LinearizationPoint of the current z's robot plan, if the pass
         # rule has made one (its kinematics are reused, not recomputed).
         checked = None
@@ -164,12 +199,10 @@ class HierarchicalSolver:
         # (the first pass, and an ordinary SQP pass: after a safety
         # violation, with rti_prediction_tolerance 0, or nobody predicted).
         damping = 1.0
-        budget = self.qp_iteration_budget
-        # PIQP's iterations in this step so far (the budget's count; reset
-        # here, so nothing carries over between steps).
-        self._spent = 0
+        # This step's QP iterations, every stage solved (a failed one's too).
+        tally = _StepTally(self.qp_iteration_budget)
         for it in range(passes):
-            if budget is not None and it > 0 and self._spent >= budget:
+            if it > 0 and tally.Spent():
                 break  # no budget left for another pass
             if it > 0 and program.predictor is not None:
                 # The next linearization point: this pass's robot plan with
@@ -194,14 +227,9 @@ class HierarchicalSolver:
                     early_targets=early,
                     warm_token=token,
                     damping=damping,
-                    budget=None if budget is None else (budget, it == 0),
+                    tally=tally,
+                    exempt_first=it == 0,
                 )
-                # (Every stage solved, a failed one's included.)
-                spent = self._pass_iterations
-                if iterations >= 0 and spent >= 0:
-                    iterations += spent
-                else:
-                    iterations = -1  # the NLP solvers do not report iterations
                 # The turn monitoring's bounds (SafetyConfig.turn_monitoring)
                 # can leave the first pass infeasible (measured in doorway
                 # jams: the people's linearized KKT rows cannot all be met
@@ -239,7 +267,7 @@ class HierarchicalSolver:
             status=status,
             stages=results,
             solve_time=time.perf_counter() - start,
-            iterations=int(iterations),
+            iterations=int(tally.iterations),
             passes=passes_run,
         )
 
@@ -270,13 +298,15 @@ class HierarchicalSolver:
         early_targets=None,
         warm_token=None,
         damping=1.0,
-        budget=None,
+        tally=None,
+        exempt_first=True,
     ):
         """One pass of every stage at one linearization point. With
         ``early_targets``, the pass rule (:meth:`_Converged`) is applied to
         the first stage's plan, and a plan that fails it ends the pass there.
-        ``budget``: (the step's budget of PIQP iterations, whether this
-        pass's first stage is exempt), or None.
+        ``tally`` (a _StepTally) counts the stages' iterations and caps them
+        at what is left of its budget; ``exempt_first``: the first stage is
+        not capped.
         Returns (z, ok, status, results, cut, point): cut says the pass
         ended early, point is then the LinearizationPoint the rule made of
         z (or None)."""
@@ -284,11 +314,9 @@ class HierarchicalSolver:
         lex_bounds: dict = {}
         results: list[StageResult] = []
         z = point.z
-        self._pass_iterations = 0  # every stage's QP iterations (−1: unknown)
+        tally = tally if tally is not None else _StepTally(None)
         for stage, solver in zip(self.stages, self.stage_solvers, strict=True):
-            cap = {}
-            if budget is not None and not (budget[1] and not results):
-                cap = dict(max_iterations=budget[0] - self._spent)
+            cap = tally.Cap(exempt=exempt_first and not results)
             if cap and cap["max_iterations"] <= 0:
                 result = StageResult(
                     z=None, success=False, status=BUDGET_SPENT, iterations=0
@@ -305,11 +333,7 @@ class HierarchicalSolver:
                     damping=damping,
                     **cap,
                 )
-            self._spent += result.piqp_iterations
-            if self._pass_iterations >= 0 and result.iterations >= 0:
-                self._pass_iterations += result.iterations
-            else:
-                self._pass_iterations = -1
+            tally.Add(result)
             results.append(result)
             if not result.success:
                 why = f"stage '{stage.name}': {result.status}"
@@ -319,14 +343,14 @@ class HierarchicalSolver:
                 # (dynamics, limits, barriers) and their priorities; only
                 # this and the lower tasks go unoptimized this step.
                 previous = self.stages[len(results) - 2].name
-                why = f"solved through '{previous}' ({why})"
+                why = f"{SOLVED_THROUGH} '{previous}' ({why})"
                 return z, True, why, results[:-1], False, None
             z = result.z
             first_of_several = len(results) == 1 < len(self.stages)
             if early_targets is not None and first_of_several:
                 converged, checked, _ = self._Converged(z, early_targets)
                 if not converged:
-                    why = f"solved through '{stage.name}'"
+                    why = f"{SOLVED_THROUGH} '{stage.name}'"
                     return z, True, why, results, True, checked
             # Eq. stmpc_lex_constr for every later stage.
             for task, _ in stage.cost_tasks:

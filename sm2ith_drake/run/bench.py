@@ -18,6 +18,7 @@ import time
 import numpy as np
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 
+from sm2ith_drake.control.hierarchy import SolvedThrough
 from sm2ith_drake.control.hpipm_library import StageQpSolver
 from sm2ith_drake.control.profiling import PROFILER
 from sm2ith_drake.diagrams.simulation import MakeSimulation
@@ -142,9 +143,7 @@ def RunBenchmark(
         "filtered": int(sum(r.mode == "filtered" for r in records)),
         # Solved steps whose lower stages went unoptimized (a stage's QP
         # failed, or controller.qp_iteration_budget ran out).
-        "solved_through": int(
-            sum(r.status.startswith("solved through") for r in records)
-        ),
+        "solved_through": int(sum(SolvedThrough(r.status) for r in records)),
         **(_Profile(steps) if profile else {}),
     }
 

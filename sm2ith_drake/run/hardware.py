@@ -14,6 +14,7 @@ from pydrake.lcm import DrakeLcm
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import EventStatus
 
+from sm2ith_drake.control.hierarchy import SolvedThrough
 from sm2ith_drake.diagrams.driver import MakeDriverDiagram
 from sm2ith_drake.diagrams.hardware import (
     GetCommandTiming,
@@ -143,7 +144,7 @@ def _ControllerFigures(diagram, root) -> dict:
         "steps": len(records),
         # Solved steps whose lower stages went unoptimized (a lower stage's
         # QP failed, or controller.qp_iteration_budget ran out).
-        "solved_through": sum(r.status.startswith("solved through") for r in records),
+        "solved_through": sum(SolvedThrough(r.status) for r in records),
     }
     for key, attr in (("solve_ms", "solve_time"), ("step_ms", "wall_time")):
         values = np.array([getattr(r, attr) for r in steady]) * 1e3
