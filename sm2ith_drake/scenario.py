@@ -170,6 +170,14 @@ class ControllerConfig:
     # (Stretch 3); 10 people 172.0–172.9 → 89.6–90.5 ms and 132.5–133.3 →
     # 97.0–97.1 ms.
     lazy_barrier_distance: float = 0.5
+    # Likewise a predicted person's two lines of the robot (its base and
+    # its nearest body) in the KKT embedding, primal and complementarity
+    # rows, where the line is inactive at the linearization point by more
+    # than this (m/s, c < −margin): those rows are all that ties a person's
+    # prediction to the robot's configuration, and PIQP's factorization
+    # fills in with them. Checked at the solution like the barrier's.
+    # 0: every row.
+    lazy_line_margin: float = 0.0
     # A budget of QP iterations per control step (0: none), as SICNav's
     # acados controller caps its QP iterations to stay real time. The first
     # stage of the first pass is never cut short (its plan meets every hard
@@ -209,6 +217,7 @@ SOLVER_SETTINGS = (
     "rti_later_pass_damping",
     "qp_solver",
     "lazy_barrier_distance",
+    "lazy_line_margin",
     "qp_iteration_budget",
 )
 

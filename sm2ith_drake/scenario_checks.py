@@ -175,6 +175,7 @@ def _ValidateController(scenario: Scenario) -> None:
         "rti_proximal_weight",
         "rti_later_pass_damping",
         "lazy_barrier_distance",
+        "lazy_line_margin",
         "qp_iteration_budget",
         "rti_prediction_tolerance",
         "rti_constraint_tolerance",

@@ -94,6 +94,8 @@ class ConstraintGroup:
     # Which entries of a dense block pattern the group keeps (None: all);
     # see KeepStructuralNonzeros.
     _keep: np.ndarray | None = None
+    # The controller setting (ControllerConfig) whose value FarRows takes.
+    lazy_setting = "lazy_barrier_distance"
 
     def Eval(self, point: LinearizationPoint) -> tuple[np.ndarray, np.ndarray]:
         """Returns g(z̄) (num_rows,) and the Jacobian nonzeros (nnz,)."""
@@ -104,6 +106,11 @@ class ConstraintGroup:
         by ``distance`` in the group's own terms (None: none is). A QP
         solver may leave them out and check them at its solution
         (PiqpWorkspace.Solve's ``lazy_rows``)."""
+        return None
+
+    def FarEntries(self, point: LinearizationPoint, threshold: float) -> np.ndarray | None:
+        """The Jacobian entries (nnz,) bool that a sparse QP solver may drop
+        where FarRows at ``threshold`` leaves rows out (None: none)."""
         return None
 
     def KeepStructuralNonzeros(self, keep: np.ndarray) -> None:

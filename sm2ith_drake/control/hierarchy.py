@@ -122,6 +122,7 @@ class HierarchicalSolver:
         rti_later_pass_damping: float = 1.0,
         qp_solver: str = "piqp",
         lazy_barrier_distance: float = 0.0,
+        lazy_line_margin: float = 0.0,
         qp_iteration_budget: int = 0,
     ):
         self.program = program
@@ -152,6 +153,7 @@ class HierarchicalSolver:
                     rti_proximal_weight,
                     qp_solver=qp_solver,
                     lazy_barrier_distance=lazy_barrier_distance,
+                    lazy_line_margin=lazy_line_margin,
                 )
                 for s in self.stages
             ]

@@ -138,11 +138,14 @@ class HpipmWorkspace:
     def Solve(self, p_values, q, a_values, x_lower, x_upper, lower, upper, **start):
         """As PiqpWorkspace.Solve. Returns (x, status, iterations).
         ``start``: warm_token, guess (see HpipmStageQp.Solve; PIQP starts
-        cold), lazy_rows and max_iterations (PIQP's only: HPIPM solves with
-        every row, in at most its own iter_max). ``piqp_iterations`` is then
+        cold), lazy_rows, far_entries and max_iterations (PIQP's only: HPIPM
+        solves with every row and entry, in at most its own iter_max). ``piqp_iterations`` is then
         PIQP's share of the iterations."""
-        lazy_rows = start.pop("lazy_rows", None)
-        cap = start.pop("max_iterations", None)
+        lazy = dict(
+            lazy_rows=start.pop("lazy_rows", None),
+            far_entries=start.pop("far_entries", None),
+            max_iterations=start.pop("max_iterations", None),
+        )
         self.piqp_iterations = 0
         pinned = x_lower == x_upper
         finite = tuple(np.isfinite(v) for v in (x_lower, x_upper, lower, upper))
@@ -158,9 +161,7 @@ class HpipmWorkspace:
             args = (q, a_values, x_lower, x_upper, lower, upper)
             if structure is _USE_PIQP:
                 piqp, order = self._Piqp()
-                x, status, iterations = piqp.Solve(
-                    p_values[order], *args, lazy_rows=lazy_rows, max_iterations=cap
-                )
+                x, status, iterations = piqp.Solve(p_values[order], *args, **lazy)
                 self.piqp_iterations = iterations
                 return x, status, iterations
             auto = self._piqp_settings is not None
@@ -178,9 +179,7 @@ class HpipmWorkspace:
                 # A QP HPIPM's fast mode did not solve (1–3 % with 3 + 7
                 # people): PIQP, cheaper than HPIPM's balanced mode.
                 piqp, order = self._Piqp()
-                z, status, more = piqp.Solve(
-                    p_values[order], *args, lazy_rows=lazy_rows, max_iterations=cap
-                )
+                z, status, more = piqp.Solve(p_values[order], *args, **lazy)
                 self.piqp_iterations = more
                 iterations += more
             return z, status, iterations

@@ -213,6 +213,7 @@ class PiqpWorkspace:
         warm_token=None,
         guess=None,
         lazy_rows=None,
+        far_entries=None,
         max_iterations=None,
     ) -> tuple[np.ndarray | None, str, int]:
         """Solves with P's values in :attr:`p_pattern` order, the constraint
@@ -234,11 +235,19 @@ class PiqpWorkspace:
         the lazy rows is solved again with every row. An updated workspace
         (``reuse_workspace``) needs the fixed pattern: it keeps every row.
 
+        ``far_entries`` (a_values' size) bool, optional: constraint entries
+        solved as zeros (ConstraintGroup.FarEntries: an inexact Jacobian
+        whose rows no longer couple a person's variables to the robot's, so
+        the factorization does not fill in with them). A fixed pattern
+        (``reuse_workspace``) keeps them.
+
         ``max_iterations``, optional: PIQP's iterations over all the rounds
         (each round at most PIQP's ``max_iter``); a QP not solved within
         them fails (or counts as solved: see NearlySolved).
 
         Returns (x, status, iterations); x is None if nothing usable."""
+        if far_entries is not None and not self.reuse_workspace:
+            a_values = np.where(far_entries, 0.0, a_values)
         qp = (p_values, q, a_values, x_lower, x_upper, lower, upper)
         x, status, total = self._SolveLazily(qp, lazy_rows, max_iterations)
         self.piqp_iterations = total

@@ -70,6 +70,7 @@ class RtiStageSolver:
         proximal_weight: float | np.ndarray = 1.0,
         qp_solver: str = "piqp",
         lazy_barrier_distance: float = 0.0,
+        lazy_line_margin: float = 0.0,
     ):
         self.program = program
         self.stage = stage
@@ -81,7 +82,11 @@ class RtiStageSolver:
         self._lex = self._problem.lexicographic_groups
         self._cost = self._problem.cost_groups
         self._qp_solver = StageQpSolver(qp_solver)
-        self.lazy_barrier_distance = float(lazy_barrier_distance)
+        # The thresholds of the groups' FarRows, by ConstraintGroup.lazy_setting.
+        self._lazy = dict(
+            lazy_barrier_distance=float(lazy_barrier_distance),
+            lazy_line_margin=float(lazy_line_margin),
+        )
         # PIQP's settings (the solver_options entry "PIQP"), and HPIPM's
         # ("HPIPM") for qp_solver hpipm and auto.
         self._settings, self._hpipm_settings = QpSettings(solver_options)
@@ -183,13 +188,18 @@ class RtiStageSolver:
 
     def _FarRows(self, group, point, linearizations):
         """The group's rows the QP may leave out and check at its solution
-        (ConstraintGroup.FarRows at ``lazy_barrier_distance``), once per
-        point."""
-        if self.lazy_barrier_distance <= 0:
-            return None
+        (ConstraintGroup.FarRows at the controller setting the group's
+        ``lazy_setting`` names) and the entries it may drop (FarEntries), once
+        per point."""
+        threshold = self._lazy.get(group.lazy_setting, 0.0)
+        if threshold <= 0:
+            return None, None
         key = ("far", id(group))
         if key not in linearizations:
-            linearizations[key] = group.FarRows(point, self.lazy_barrier_distance)
+            linearizations[key] = (
+                group.FarRows(point, threshold),
+                group.FarEntries(point, threshold),
+            )
         return linearizations[key]
 
     @PROFILER.Timed("qp_assembly")
@@ -246,13 +256,15 @@ class RtiStageSolver:
         qvec += problem.effort_linear
         # Shared constraints (eq. stmpc_sys_consts), then the lexicographic
         # ones (eq. stmpc_lex_constr), both on the linearization J z + c.
-        a_vals, lo, hi, lazy = [], [], [], []
+        a_vals, lo, hi, lazy, weak = [], [], [], [], []
         for group, glo, ghi in self._shared:
             vals, c = lin(group)
             a_vals.append(vals)
             lo.append(glo - c)
             hi.append(ghi - c)
-            lazy.append(self._FarRows(group, point, linearizations))
+            rows, entries = self._FarRows(group, point, linearizations)
+            lazy.append(rows)
+            weak.append(entries)
         for group in self._lex:
             vals, c = lin(group)
             band_lo, band_hi = LexicographicBand(lex_bounds[group.task.name])
@@ -260,14 +272,8 @@ class RtiStageSolver:
             lo.append(band_lo - c)
             hi.append(band_hi - c)
             lazy.append(None)
-        lazy_rows = None
-        if any(m is not None and m.any() for m in lazy):
-            lazy_rows = np.concatenate(
-                [
-                    np.zeros(v.size, dtype=bool) if m is None else m
-                    for m, v in zip(lazy, lo, strict=True)
-                ]
-            )
+            weak.append(None)
+        lazy_rows, far_entries = _Concatenated(lazy, lo), _Concatenated(weak, a_vals)
         x, status, iters = self._qp.Solve(
             p_values,
             qvec,
@@ -279,6 +285,7 @@ class RtiStageSolver:
             warm_token=warm_token,
             guess=guess,
             lazy_rows=lazy_rows,
+            far_entries=far_entries,
             max_iterations=max_iterations,
         )
         if lazy_rows is not None:
@@ -308,3 +315,16 @@ class RtiStageSolver:
             errors=errors,
             piqp_iterations=self._qp.piqp_iterations,
         )
+
+
+def _Concatenated(masks, like):
+    """The per-group bool ``masks`` (None: all False) over the concatenation
+    of ``like``'s arrays, or None if none is set."""
+    if not any(m is not None and m.any() for m in masks):
+        return None
+    return np.concatenate(
+        [
+            np.zeros(v.size, dtype=bool) if m is None else m
+            for m, v in zip(masks, like, strict=True)
+        ]
+    )

@@ -284,6 +284,7 @@ class KktInequalities(ConstraintGroup):
     human's QP; dual feasibility λ ≥ 0 (eq. smith_kkt_dual) is a bound."""
 
     name = "orca_kkt_inequalities"
+    lazy_setting = "lazy_line_margin"
 
     def __init__(self, pred, blocks):
         self.pred = pred
@@ -329,6 +330,39 @@ class KktInequalities(ConstraintGroup):
         hi = np.concatenate([np.zeros(R), np.full(R, np.inf)])
         count = self.pred.kkt_steps * self.pred.num_slots
         return np.tile(lo, count), np.tile(hi, count)
+
+    def FarRows(self, point, margin):
+        """The primal and complementarity rows of a person's line of the
+        robot's base or of its nearest body (the last two agent lines) where
+        that line is inactive by more than ``margin`` (m/s, c < −margin) at
+        ``point``. They are the only rows that tie a person's prediction to
+        the robot's configuration. Left out, the QP is a relaxation of the
+        whole one; PiqpWorkspace.Solve checks them at its solution."""
+        if margin <= 0 or self.num_rows == 0:
+            return None
+        e = self.blocks.Evaluate(point)
+        K, R = self.pred.num_neighbors, self.blocks.num_multipliers
+        lines = np.arange(2 + K, 4 + K)
+        far = e.c[..., lines] < -margin  # (N, H, 2)
+        mask = np.zeros(e.c.shape[:2] + (self.ri,), dtype=bool)
+        mask[..., lines] = far
+        return mask.reshape(-1)
+
+    def FarEntries(self, point, margin):
+        """The entries λ̄ ∂c/∂(q, ν) of the complementarity rows of the
+        robot lines FarRows leaves out (λ̄ is at most ε/margin there): a
+        sparse QP solver may drop them, which leaves the person's block
+        without the robot's columns (an inexact Jacobian, as for the other
+        people's states; the rows stay exact at the point)."""
+        if margin <= 0 or self.num_rows == 0:
+            return None
+        e, b = self.blocks.Evaluate(point), self.blocks
+        K, R = self.pred.num_neighbors, b.num_multipliers
+        lines = np.arange(2 + K, 4 + K)
+        far = e.c[..., lines] < -margin  # (N, H, 2)
+        dense = np.zeros(e.c.shape[:2] + (self.ri, b.width), dtype=bool)
+        dense[:, :, R + lines, b.iq :] = far[..., None]
+        return dense.reshape(-1)[self._gather]
 
     def Eval(self, point):
         pred, b = self.pred, self.blocks
