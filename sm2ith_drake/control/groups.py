@@ -108,7 +108,9 @@ class ConstraintGroup:
         (PiqpWorkspace.Solve's ``lazy_rows``)."""
         return None
 
-    def FarEntries(self, point: LinearizationPoint, threshold: float) -> np.ndarray | None:
+    def FarEntries(
+        self, point: LinearizationPoint, threshold: float
+    ) -> np.ndarray | None:
         """The Jacobian entries (nnz,) bool that a sparse QP solver may drop
         where FarRows at ``threshold`` leaves rows out (None: none)."""
         return None

@@ -139,8 +139,8 @@ class HpipmWorkspace:
         """As PiqpWorkspace.Solve. Returns (x, status, iterations).
         ``start``: warm_token, guess (see HpipmStageQp.Solve; PIQP starts
         cold), lazy_rows, far_entries and max_iterations (PIQP's only: HPIPM
-        solves with every row and entry, in at most its own iter_max). ``piqp_iterations`` is then
-        PIQP's share of the iterations."""
+        solves with every row and entry, in at most its own iter_max).
+        ``piqp_iterations`` is then PIQP's share of the iterations."""
         lazy = dict(
             lazy_rows=start.pop("lazy_rows", None),
             far_entries=start.pop("far_entries", None),

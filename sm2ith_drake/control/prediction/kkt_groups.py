@@ -331,36 +331,40 @@ class KktInequalities(ConstraintGroup):
         count = self.pred.kkt_steps * self.pred.num_slots
         return np.tile(lo, count), np.tile(hi, count)
 
+    def _FarLines(self, point, margin):
+        """The robot's two lines (the last agent lines: base, nearest body)
+        as local row indices, and where each is inactive by more than
+        ``margin`` (m/s, c < −margin) at ``point`` (N, H, 2)."""
+        c = self.blocks.Evaluate(point).c
+        lines = np.arange(2, 4) + self.pred.num_neighbors
+        return lines, c[..., lines] < -margin
+
     def FarRows(self, point, margin):
-        """The primal and complementarity rows of a person's line of the
-        robot's base or of its nearest body (the last two agent lines) where
-        that line is inactive by more than ``margin`` (m/s, c < −margin) at
-        ``point``. They are the only rows that tie a person's prediction to
-        the robot's configuration. Left out, the QP is a relaxation of the
-        whole one; PiqpWorkspace.Solve checks them at its solution."""
+        """The primal rows of a person's line of the robot's base or of its
+        nearest body where that line is inactive by more than ``margin``
+        (m/s) at ``point``. With their complementarity rows (FarEntries)
+        they are the only rows that tie a person's prediction to the
+        robot's configuration. Left out, the QP is a relaxation of the whole
+        one; PiqpWorkspace.Solve checks them at its solution."""
         if margin <= 0 or self.num_rows == 0:
             return None
-        e = self.blocks.Evaluate(point)
-        K, R = self.pred.num_neighbors, self.blocks.num_multipliers
-        lines = np.arange(2 + K, 4 + K)
-        far = e.c[..., lines] < -margin  # (N, H, 2)
-        mask = np.zeros(e.c.shape[:2] + (self.ri,), dtype=bool)
+        lines, far = self._FarLines(point, margin)
+        mask = np.zeros(far.shape[:2] + (self.ri,), dtype=bool)
         mask[..., lines] = far
         return mask.reshape(-1)
 
     def FarEntries(self, point, margin):
         """The entries λ̄ ∂c/∂(q, ν) of the complementarity rows of the
-        robot lines FarRows leaves out (λ̄ is at most ε/margin there): a
-        sparse QP solver may drop them, which leaves the person's block
-        without the robot's columns (an inexact Jacobian, as for the other
-        people's states; the rows stay exact at the point)."""
+        lines FarRows leaves out (λ̄ is at most ε/margin there, if the point
+        meets them): a sparse QP solver may solve them as zeros, which
+        leaves the person's block without the robot's columns (an inexact
+        Jacobian, as for the other people's states; the rows stay exact at
+        the point)."""
         if margin <= 0 or self.num_rows == 0:
             return None
-        e, b = self.blocks.Evaluate(point), self.blocks
-        K, R = self.pred.num_neighbors, b.num_multipliers
-        lines = np.arange(2 + K, 4 + K)
-        far = e.c[..., lines] < -margin  # (N, H, 2)
-        dense = np.zeros(e.c.shape[:2] + (self.ri, b.width), dtype=bool)
+        lines, far = self._FarLines(point, margin)
+        b, R = self.blocks, self.blocks.num_multipliers
+        dense = np.zeros(far.shape[:2] + (self.ri, b.width), dtype=bool)
         dense[:, :, R + lines, b.iq :] = far[..., None]
         return dense.reshape(-1)[self._gather]
 
