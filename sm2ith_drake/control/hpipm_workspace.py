@@ -138,13 +138,19 @@ class HpipmWorkspace:
     def Solve(self, p_values, q, a_values, x_lower, x_upper, lower, upper, **start):
         """As PiqpWorkspace.Solve. Returns (x, status, iterations).
         ``start``: warm_token, guess (see HpipmStageQp.Solve; PIQP starts
-        cold), lazy_rows, far_entries and max_iterations (PIQP's only: HPIPM
-        solves with every row and entry, in at most its own iter_max).
+        cold), lazy_rows, far_rows, far_entries and max_iterations (PIQP's
+        only: HPIPM solves with every row and entry, in at most its own
+        iter_max).
         ``piqp_iterations`` is then PIQP's share of the iterations."""
         lazy = dict(
             lazy_rows=start.pop("lazy_rows", None),
-            far_entries=start.pop("far_entries", None),
             max_iterations=start.pop("max_iterations", None),
+        )
+        # Only for the QPs too wide for HPIPM: its small QPs, when its fast
+        # mode fails them, are PIQP's with every line (their plans as before).
+        far = dict(
+            far_rows=start.pop("far_rows", None),
+            far_entries=start.pop("far_entries", None),
         )
         self.piqp_iterations = 0
         pinned = x_lower == x_upper
@@ -161,7 +167,9 @@ class HpipmWorkspace:
             args = (q, a_values, x_lower, x_upper, lower, upper)
             if structure is _USE_PIQP:
                 piqp, order = self._Piqp()
-                x, status, iterations = piqp.Solve(p_values[order], *args, **lazy)
+                x, status, iterations = piqp.Solve(
+                    p_values[order], *args, **lazy, **far
+                )
                 self.piqp_iterations = iterations
                 return x, status, iterations
             auto = self._piqp_settings is not None

@@ -213,6 +213,7 @@ class PiqpWorkspace:
         warm_token=None,
         guess=None,
         lazy_rows=None,
+        far_rows=None,
         far_entries=None,
         max_iterations=None,
     ) -> tuple[np.ndarray | None, str, int]:
@@ -235,11 +236,15 @@ class PiqpWorkspace:
         the lazy rows is solved again with every row. An updated workspace
         (``reuse_workspace``) needs the fixed pattern: it keeps every row.
 
-        ``far_entries`` (a_values' size) bool, optional: constraint entries
-        solved as zeros (ConstraintGroup.FarEntries: an inexact Jacobian
-        whose rows no longer couple a person's variables to the robot's, so
-        the factorization does not fill in with them). A fixed pattern
-        (``reuse_workspace``) keeps them.
+        ``far_rows`` (num_rows,) bool, optional: more rows left out and
+        checked as ``lazy_rows`` are (ConstraintGroup.FarRows of the robot's
+        lines, cleared where put back), and ``far_entries`` (a_values'
+        size) bool: constraint entries solved as zeros
+        (ConstraintGroup.FarEntries: an inexact Jacobian whose rows no
+        longer couple a person's variables to the robot's, so the
+        factorization does not fill in with them). A fixed pattern
+        (``reuse_workspace``) keeps them. HpipmWorkspace passes both only
+        for the QPs too wide for HPIPM, not for those its fast mode fails.
 
         ``max_iterations``, optional: PIQP's iterations over all the rounds
         (each round at most PIQP's ``max_iter``); a QP not solved within
@@ -248,8 +253,14 @@ class PiqpWorkspace:
         Returns (x, status, iterations); x is None if nothing usable."""
         if far_entries is not None and not self.reuse_workspace:
             a_values = np.where(far_entries, 0.0, a_values)
+        lazy = lazy_rows
+        if far_rows is not None:
+            lazy = far_rows if lazy_rows is None else lazy_rows | far_rows
         qp = (p_values, q, a_values, x_lower, x_upper, lower, upper)
-        x, status, total = self._SolveLazily(qp, lazy_rows, max_iterations)
+        x, status, total = self._SolveLazily(qp, lazy, max_iterations)
+        if lazy is not None and lazy is not lazy_rows and lazy is not far_rows:
+            lazy_rows &= lazy
+            far_rows &= lazy
         self.piqp_iterations = total
         return x, status, total
 

@@ -256,14 +256,18 @@ class RtiStageSolver:
         qvec += problem.effort_linear
         # Shared constraints (eq. stmpc_sys_consts), then the lexicographic
         # ones (eq. stmpc_lex_constr), both on the linearization J z + c.
-        a_vals, lo, hi, lazy, weak = [], [], [], [], []
+        # Rows PIQP may leave out: the barrier's (lazy) and the robot lines'
+        # (lines, with the entries it may drop), per group.
+        a_vals, lo, hi, lazy, lines, weak = [], [], [], [], [], []
         for group, glo, ghi in self._shared:
             vals, c = lin(group)
             a_vals.append(vals)
             lo.append(glo - c)
             hi.append(ghi - c)
             rows, entries = self._FarRows(group, point, linearizations)
-            lazy.append(rows)
+            line_group = group.lazy_setting == "lazy_line_margin"
+            lazy.append(None if line_group else rows)
+            lines.append(rows if line_group else None)
             weak.append(entries)
         for group in self._lex:
             vals, c = lin(group)
@@ -272,8 +276,9 @@ class RtiStageSolver:
             lo.append(band_lo - c)
             hi.append(band_hi - c)
             lazy.append(None)
+            lines.append(None)
             weak.append(None)
-        lazy_rows, far_entries = _Concatenated(lazy, lo), _Concatenated(weak, a_vals)
+        lazy_rows, far_rows = _Concatenated(lazy, lo), _Concatenated(lines, lo)
         x, status, iters = self._qp.Solve(
             p_values,
             qvec,
@@ -285,17 +290,19 @@ class RtiStageSolver:
             warm_token=warm_token,
             guess=guess,
             lazy_rows=lazy_rows,
-            far_entries=far_entries,
+            far_rows=far_rows,
+            far_entries=_Concatenated(weak, a_vals),
             max_iterations=max_iterations,
         )
-        if lazy_rows is not None:
-            # The rows the solve put back stay in the later QPs at this point
-            # (the next stages: their plans are near this one's).
-            offset = 0
-            for m, v in zip(lazy, lo, strict=True):
-                if m is not None:
-                    m &= lazy_rows[offset : offset + v.size]
-                offset += v.size
+        # The rows the solve put back stay in the later QPs at this point
+        # (the next stages: their plans are near this one's).
+        for masks, solved in ((lazy, lazy_rows), (lines, far_rows)):
+            if solved is not None:
+                offset = 0
+                for m, v in zip(masks, lo, strict=True):
+                    if m is not None:
+                        m &= solved[offset : offset + v.size]
+                    offset += v.size
         success = status in ("solved", "solved_inaccurate")
         errors = {}
         if x is not None and np.all(np.isfinite(x)):
