@@ -170,14 +170,18 @@ class ControllerConfig:
     # (Stretch 3); 10 people 172.0–172.9 → 89.6–90.5 ms and 132.5–133.3 →
     # 97.0–97.1 ms.
     lazy_barrier_distance: float = 0.5
-    # Likewise a predicted person's two lines of the robot (its base and
-    # its nearest body) in the KKT embedding, primal and complementarity
-    # rows, where the line is inactive at the linearization point by more
-    # than this (m/s, c < −margin): those rows are all that ties a person's
-    # prediction to the robot's configuration, and PIQP's factorization
-    # fills in with them. Checked at the solution like the barrier's.
-    # 0: every row.
-    lazy_line_margin: float = 0.0
+    # PIQP's stage QPs too wide for HPIPM (more than ~3 people): a predicted
+    # person's two lines of the robot in the KKT embedding (its base and its
+    # nearest body) where the line is inactive at the linearization point
+    # by more than this (m/s, c < −margin). Their primal rows are left out
+    # and checked at the solution like the barrier's; their complementarity
+    # rows are solved without λ̄ ∂c/∂(q, ν) (λ̄ ≤ ε/margin there; the rows
+    # exact at the point). Those are all that ties a person's prediction to
+    # the robot's configuration, and PIQP's factorization fills in with
+    # them. 0: every row and entry (the default until 2026-11-29).
+    # Measured (bench, 10 people, 200 steps, README, Benchmark): median
+    # 99.8 → 69.7 ms (Ridgeback–UR10), 103.8 → 72.1 ms (Stretch 3).
+    lazy_line_margin: float = 0.25
     # A budget of QP iterations per control step (0: none), as SICNav's
     # acados controller caps its QP iterations to stay real time. The first
     # stage of the first pass is never cut short (its plan meets every hard
