@@ -20,9 +20,8 @@ MARGIN = 0.25
 
 
 def _Group(c):
-    return next(
-        g for g, _, _ in c.program.extra_constraints if g.name == "orca_kkt_inequalities"
-    )
+    groups = (g for g, _, _ in c.program.extra_constraints)
+    return next(g for g in groups if g.name == "orca_kkt_inequalities")
 
 
 def test_far_robot_lines_are_the_inactive_lines_of_the_robot():
@@ -75,6 +74,28 @@ def test_far_entries_are_solved_as_zeros(seed):
     np.testing.assert_allclose(x, expected, atol=1e-4)
     x_whole, _, _ = ws.Solve(*qp)
     assert np.max(np.abs(x_whole - expected)) > 1e-2
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_far_rows_are_checked_and_put_back_with_the_lazy_rows(seed):
+    """Far rows are left out and checked as lazy rows are: every inequality
+    row split between the two masks, the solution is still the whole QP's,
+    and every row that binds there was put back, in the mask it came in."""
+    ws, args, P, A = _RandomQp(np.random.default_rng(seed), TIGHT)
+    p_values, q, a_values, x_lower, x_upper, lower, upper = args
+    expected = _Clarabel(P, q, A, x_lower, x_upper, lower, upper)
+    inequality = np.ones(ROWS, dtype=bool)
+    inequality[EQUALITIES] = False
+    half = np.arange(ROWS) % 2 == 0
+    lazy, far = inequality & half, inequality & ~half
+    x, status, _ = ws.Solve(*args, lazy_rows=lazy, far_rows=far)
+    assert status == "solved"
+    np.testing.assert_allclose(x, expected, atol=1e-6)
+    value = A @ expected
+    binding = inequality & ((value < lower + 1e-4) | (value > upper - 1e-4))
+    assert (binding & half).any() and (binding & ~half).any()
+    assert not ((lazy | far) & binding).any()
+    assert not (lazy & ~half).any() and not (far & half).any()
 
 
 def _Plan(qp_solver, margin, tight):
