@@ -7,9 +7,8 @@ does not tie into the robot's configuration."""
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from pydrake.solvers import SolverOptions
 from test_inside_barrier import _Controller
-from test_lazy_rows import TIGHT
+from test_lazy_rows import TIGHT, PlanOneStep, TightPiqp
 from test_piqp_workspace import EQUALITIES, ROWS, _Clarabel, _RandomQp
 
 from sm2ith_drake.scenario import ControllerConfig
@@ -101,19 +100,9 @@ def test_far_rows_are_checked_and_put_back_with_the_lazy_rows(seed):
 def _Plan(qp_solver, margin, tight):
     config = ControllerConfig(horizon=3, qp_solver=qp_solver, lazy_line_margin=margin)
     if tight:
-        options = SolverOptions()
-        options.options = {"PIQP": dict(TIGHT)}
-        config.solver_options = options
-    c, _, _, targets = _Controller("decay", PEOPLE, config=config)
-    q0 = c.robot.default_q.copy()
-    nu0 = np.zeros(c.robot.num_velocities)
-    nu0[:2] = [0.2, 0.4]
-    z = c.WarmStart(c.InitialState(), q0, nu0)
-    if margin:
-        assert _Group(c).FarRows(c.program.MakePoint(z, targets), margin).any()
-    solution = c.solver.Solve(q0=q0, nu0=nu0, targets=targets, z_guess=z)
-    assert solution.success, solution.status
-    return solution
+        config.solver_options = TightPiqp()
+    far = (lambda c, point: _Group(c).FarRows(point, margin)) if margin else None
+    return PlanOneStep(config, PEOPLE, far)
 
 
 def test_the_controller_plans_the_same_with_lazy_robot_lines():

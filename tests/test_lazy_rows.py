@@ -72,6 +72,31 @@ def test_lazy_rows_give_the_whole_qps_solution(seed):
 CLEAR = [[2.5, 1.5], [0.9, 0.7]]
 
 
+def TightPiqp() -> SolverOptions:
+    """PIQP at the TIGHT tolerances."""
+    options = SolverOptions()
+    options.options = {"PIQP": dict(TIGHT)}
+    return options
+
+
+def PlanOneStep(config, people, far=None):
+    """One step of SM²ITH's hierarchy with ``config`` (_Controller's
+    Stretch 3 among ``people``), from the warm start itself (_Controller's
+    perturbed one is infeasible). ``far(c, point)``, if given, must leave
+    some rows out at the warm start, not all."""
+    c, _, _, targets = _Controller("decay", people, config=config)
+    q0 = c.robot.default_q.copy()
+    nu0 = np.zeros(c.robot.num_velocities)
+    nu0[:2] = [0.2, 0.4]
+    z = c.WarmStart(c.InitialState(), q0, nu0)
+    if far is not None:
+        rows = far(c, c.program.MakePoint(z, targets))
+        assert rows.any() and not rows.all()
+    solution = c.solver.Solve(q0=q0, nu0=nu0, targets=targets, z_guess=z)
+    assert solution.success, solution.status
+    return solution
+
+
 def test_the_controller_plans_the_same_with_lazy_rows():
     """One step of SM²ITH's hierarchy with PIQP (tight tolerances: the stage
     QPs are degenerate, and at PIQP's shipped ones two solves of the same QP
@@ -79,26 +104,19 @@ def test_the_controller_plans_the_same_with_lazy_rows():
     with rows left out."""
     plans = []
     for distance in (0.0, 0.25):
-        options = SolverOptions()
-        options.options = {"PIQP": dict(TIGHT)}
         config = ControllerConfig(
             horizon=3,
             qp_solver="piqp",
             lazy_barrier_distance=distance,
-            solver_options=options,
+            solver_options=TightPiqp(),
         )
-        c, _, _, targets = _Controller("decay", CLEAR, config=config)
-        q0 = c.robot.default_q.copy()
-        nu0 = np.zeros(c.robot.num_velocities)
-        nu0[:2] = [0.2, 0.4]
-        # The warm start itself (_Controller's perturbed one is infeasible).
-        z = c.WarmStart(c.InitialState(), q0, nu0)
+        far = None
         if distance:
-            far = c.program.cbf.FarRows(c.program.MakePoint(z, targets), distance)
-            assert far.any() and not far.all()
-        solution = c.solver.Solve(q0=q0, nu0=nu0, targets=targets, z_guess=z)
-        assert solution.success, solution.status
-        plans.append(solution)
+
+            def far(c, point, distance=distance):
+                return c.program.cbf.FarRows(point, distance)
+
+        plans.append(PlanOneStep(config, CLEAR, far))
     np.testing.assert_allclose(plans[1].q, plans[0].q, atol=1e-6)
     np.testing.assert_allclose(plans[1].u, plans[0].u, atol=1e-5)
 

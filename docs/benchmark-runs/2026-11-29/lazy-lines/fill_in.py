@@ -1,7 +1,8 @@
-"""PIQP factorization time per iteration on dumped QPs (dump_qps.py) with
-the robot entries taken out of kinds of inequality rows that tie a person
-to the robot (README, Benchmark, fourteenth session). Not a controller:
-the QPs without those entries are only timed.
+"""PIQP factorization time per iteration on dumped QPs
+(../lazy-rows/qp_settings.py dump) with the robot entries taken out of
+kinds of inequality rows that tie a person to the robot (README,
+Benchmark, fourteenth session). Not a controller: the QPs without those
+entries are only timed.
 
     python fill_in.py QPS.pkl NQ NV        # Stretch 3: 7 6; Ridgeback-UR10: 9 9
 """

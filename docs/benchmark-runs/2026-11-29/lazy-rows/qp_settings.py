@@ -28,10 +28,12 @@ def Dump(robot, steps, keep, out, rti_iterations=None):
     qps, count = [], [0]
     solve = pw.PiqpWorkspace._Solve
 
-    def _Solve(self, p, q, a, x_l, x_u, lower, upper, dropped=None):
-        x, status, iterations = solve(self, p, q, a, x_l, x_u, lower, upper, dropped)
+    def _Solve(self, qp, dropped=None, max_iterations=None):
+        # The signature since 405d286 (qp: Solve's first seven arguments).
+        x, status, iterations = solve(self, qp, dropped, max_iterations)
         count[0] += 1
         if keep(count[0], iterations):
+            p, q, a, x_l, x_u, lower, upper = qp
             kept = np.ones(self._in_rows.size, dtype=bool)
             if dropped is not None:
                 kept = ~dropped[self._in_rows]
