@@ -140,17 +140,19 @@ class HpipmWorkspace:
         ``start``: warm_token, guess (see HpipmStageQp.Solve; PIQP starts
         cold), lazy_rows, far_rows, far_entries and max_iterations (PIQP's
         only: HPIPM solves with every row and entry, in at most its own
-        iter_max).
-        ``piqp_iterations`` is then PIQP's share of the iterations."""
-        lazy = dict(
-            lazy_rows=start.pop("lazy_rows", None),
-            max_iterations=start.pop("max_iterations", None),
-        )
+        iter_max). ``piqp_iterations`` is then the iterations of PIQP on a
+        QP too wide for HPIPM (what controller.qp_iteration_budget counts),
+        0 for HPIPM's QPs, also where PIQP finishes one its fast mode
+        failed."""
+        lazy_rows = start.pop("lazy_rows", None)
         # Only for the QPs too wide for HPIPM: its small QPs, when its fast
-        # mode fails them, are PIQP's with every line (their plans as before).
-        far = dict(
+        # mode fails them, are PIQP's with every line and without a cap
+        # (their plans as before; the budget counts HPIPM's QPs out).
+        wide = dict(
+            lazy_rows=lazy_rows,
             far_rows=start.pop("far_rows", None),
             far_entries=start.pop("far_entries", None),
+            max_iterations=start.pop("max_iterations", None),
         )
         self.piqp_iterations = 0
         pinned = x_lower == x_upper
@@ -167,9 +169,7 @@ class HpipmWorkspace:
             args = (q, a_values, x_lower, x_upper, lower, upper)
             if structure is _USE_PIQP:
                 piqp, order = self._Piqp()
-                x, status, iterations = piqp.Solve(
-                    p_values[order], *args, **lazy, **far
-                )
+                x, status, iterations = piqp.Solve(p_values[order], *args, **wide)
                 self.piqp_iterations = iterations
                 return x, status, iterations
             auto = self._piqp_settings is not None
@@ -185,10 +185,12 @@ class HpipmWorkspace:
                 z, status, iterations = None, f"qp error: {e}", 0
             if status != "solved" and auto:
                 # A QP HPIPM's fast mode did not solve (1–3 % with 3 + 7
-                # people): PIQP, cheaper than HPIPM's balanced mode.
+                # people): PIQP, cheaper than HPIPM's balanced mode. Its
+                # iterations count as HPIPM's (piqp_iterations stays 0).
                 piqp, order = self._Piqp()
-                z, status, more = piqp.Solve(p_values[order], *args, **lazy)
-                self.piqp_iterations = more
+                z, status, more = piqp.Solve(
+                    p_values[order], *args, lazy_rows=lazy_rows
+                )
                 iterations += more
             return z, status, iterations
         except (ValueError, np.linalg.LinAlgError) as e:
