@@ -193,12 +193,12 @@ class ControllerConfig:
     # budget is spent. Counted in iterations, not seconds, so that a run
     # reproduces from a cloned Context. Only PIQP's iterations on QPs too
     # wide for HPIPM count (more than ~3 people), so runs with fewer people
-    # are the same with or without it. 100 by default since the fourteenth
-    # session (with lazy_line_margin; README, Benchmark): 10 people's p99
-    # 155–162 / 93–109 ms against 425–440 / 211–225 ms; in the 5-person
-    # doorway (30 seeds) the same arrivals, the robot waiting longer in one
-    # cell. 0: no budget.
-    qp_iteration_budget: int = 100
+    # are the same with or without it. With 100 and lazy_line_margin
+    # (README, Benchmark): 10 people's p99 155–162 / 93–109 ms against
+    # 425–440 / 211–225 ms, and in the 5-person doorway (30 seeds) the
+    # same arrivals, but the Stretch 3 stood still longer in the `paper`
+    # variant (+0.60 s [+0.07, +1.16] per run), so it is not the default.
+    qp_iteration_budget: int = 0
     # Slack added to |e*| in the lexicographic constraints (eq. stmpc_lex_constr).
     lexicographic_tolerance: float = 1e-3
     # J_eff = ½ Σ w_ν‖ν_k‖² + w_u‖u_k‖².
