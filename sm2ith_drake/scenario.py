@@ -164,22 +164,14 @@ class ControllerConfig:
     # (m, h at both knots of the row, at the linearization point), and
     # checked at its solution; rows it violates are put back and the QP
     # solved again, so the plan is the whole QP's (PiqpWorkspace.Solve).
-    # 0: every row in every QP (the default until 2026-11-29). HPIPM's QPs
-    # always keep every row. Measured (bench, 200 steps, README, Benchmark):
-    # 5 people median 87.4 → 52.7 ms (Ridgeback–UR10), 62.3 → 46.3 ms
-    # (Stretch 3); 10 people 172.0–172.9 → 89.6–90.5 ms and 132.5–133.3 →
-    # 97.0–97.1 ms.
+    # 0: every row in every QP. HPIPM's QPs always keep every row. Bench
+    # (README, Benchmark), 10 people: median 172.0–172.9 → 89.6–90.5 ms
+    # (Ridgeback–UR10), 132.5–133.3 → 97.0–97.1 ms (Stretch 3).
     lazy_barrier_distance: float = 0.5
-    # PIQP's stage QPs too wide for HPIPM (more than ~3 people): a predicted
-    # person's two lines of the robot in the KKT embedding (its base and its
-    # nearest body) where the line is inactive at the linearization point
-    # by more than this (m/s, c < −margin). Their primal rows are left out
-    # and checked at the solution like the barrier's; their complementarity
-    # rows are solved without λ̄ ∂c/∂(q, ν) (λ̄ ≤ ε/margin there; the rows
-    # exact at the point). Those are all that ties a person's prediction to
-    # the robot's configuration, and PIQP's factorization fills in with
-    # them. 0: every row and entry (the default until 2026-11-29).
-    # Measured (bench, 10 people, 200 steps, README, Benchmark): median
+    # PIQP's QPs too wide for HPIPM: a person's lines of the robot (base,
+    # nearest body) inactive by more than this (m/s) leave their primal rows
+    # out (checked at the solution) and their complementarity rows' robot
+    # entries (README, How it works). 0: every row. Bench, 10 people: median
     # 99.8 → 69.7 ms (Ridgeback–UR10), 103.8 → 72.1 ms (Stretch 3).
     lazy_line_margin: float = 0.25
     # A budget of QP iterations per control step (0: none), as SICNav's
@@ -192,12 +184,8 @@ class ControllerConfig:
     # runs out keeps the previous pass's plan, and no pass starts once the
     # budget is spent. Counted in iterations, not seconds, so that a run
     # reproduces from a cloned Context. Only PIQP's iterations on QPs too
-    # wide for HPIPM count (more than ~3 people), so runs with fewer people
-    # are the same with or without it. With 100 and lazy_line_margin
-    # (README, Benchmark): 10 people's p99 155–162 / 93–109 ms against
-    # 425–440 / 211–225 ms, and in the 5-person doorway (30 seeds) the
-    # same arrivals, but the Stretch 3 stood still longer in the `paper`
-    # variant (+0.60 s [+0.07, +1.16] per run), so it is not the default.
+    # wide for HPIPM count. Not the default: the Stretch 3 stood still
+    # longer in the 5-person doorway (README, Benchmark).
     qp_iteration_budget: int = 0
     # Slack added to |e*| in the lexicographic constraints (eq. stmpc_lex_constr).
     lexicographic_tolerance: float = 1e-3
