@@ -96,6 +96,10 @@ class ConstraintGroup:
     _keep: np.ndarray | None = None
     # The controller setting (ControllerConfig) whose value FarRows takes.
     lazy_setting = "lazy_barrier_distance"
+    # Whether FarRows may be left out of every QP PIQP solves (True), or only
+    # of those too wide for HPIPM (False: the small QPs HPIPM's fast mode
+    # fails keep them, and their plans stay HPIPM's).
+    far_rows_in_small_qps = True
 
     def Eval(self, point: LinearizationPoint) -> tuple[np.ndarray, np.ndarray]:
         """Returns g(z̄) (num_rows,) and the Jacobian nonzeros (nnz,)."""

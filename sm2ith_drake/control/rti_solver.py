@@ -256,18 +256,18 @@ class RtiStageSolver:
         qvec += problem.effort_linear
         # Shared constraints (eq. stmpc_sys_consts), then the lexicographic
         # ones (eq. stmpc_lex_constr), both on the linearization J z + c.
-        # Rows PIQP may leave out: the barrier's (lazy) and the robot lines'
-        # (lines, with the entries it may drop), per group.
-        a_vals, lo, hi, lazy, lines, weak = [], [], [], [], [], []
+        # Rows PIQP may leave out of every QP it solves (lazy) and of those
+        # too wide for HPIPM only (wide), per group; entries it may drop.
+        a_vals, lo, hi, lazy, wide, weak = [], [], [], [], [], []
         for group, glo, ghi in self._shared:
             vals, c = lin(group)
             a_vals.append(vals)
             lo.append(glo - c)
             hi.append(ghi - c)
             rows, entries = self._FarRows(group, point, linearizations)
-            line_group = group.lazy_setting == "lazy_line_margin"
-            lazy.append(None if line_group else rows)
-            lines.append(rows if line_group else None)
+            small = group.far_rows_in_small_qps
+            lazy.append(rows if small else None)
+            wide.append(None if small else rows)
             weak.append(entries)
         for group in self._lex:
             vals, c = lin(group)
@@ -276,9 +276,9 @@ class RtiStageSolver:
             lo.append(band_lo - c)
             hi.append(band_hi - c)
             lazy.append(None)
-            lines.append(None)
+            wide.append(None)
             weak.append(None)
-        lazy_rows, far_rows = _Concatenated(lazy, lo), _Concatenated(lines, lo)
+        lazy_rows, far_rows = _Concatenated(lazy, lo), _Concatenated(wide, lo)
         x, status, iters = self._qp.Solve(
             p_values,
             qvec,
@@ -296,7 +296,7 @@ class RtiStageSolver:
         )
         # The rows the solve put back stay in the later QPs at this point
         # (the next stages: their plans are near this one's).
-        for masks, solved in ((lazy, lazy_rows), (lines, far_rows)):
+        for masks, solved in ((lazy, lazy_rows), (wide, far_rows)):
             if solved is not None:
                 offset = 0
                 for m, v in zip(masks, lo, strict=True):

@@ -285,6 +285,7 @@ class KktInequalities(ConstraintGroup):
 
     name = "orca_kkt_inequalities"
     lazy_setting = "lazy_line_margin"
+    far_rows_in_small_qps = False
 
     def __init__(self, pred, blocks):
         self.pred = pred
