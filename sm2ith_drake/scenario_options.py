@@ -85,6 +85,11 @@ class OvertakingConfig:
     share: float = 1.0
     wait: bool = True
     guard: bool = False
+    # Without ``guard``: still hold an overtaker measured within
+    # SafetyConfig.guard_gap of the robot (as the guard holds anyone that
+    # close), so the robot does not back or turn into someone at its back.
+    # Measured in the doorway (README, Contact in the safe variant).
+    guard_close: bool = False
     angle: float = 45.0
     keep_angle: float = 90.0
     min_robot_speed: float = 0.05

@@ -71,12 +71,14 @@ def test_an_overtaker_who_steps_aside_stays_one_with_keep_angle():
     assert not Overtaking(p, v, [True] * 4, ROBOT_P, ROBOT_V, config, kept=kept).any()
 
 
-def _PredictTwo(overtaking=None, state=None, velocity=(1.4, 0.0), **guards):
+def _PredictTwo(
+    overtaking=None, state=None, velocity=(1.4, 0.0), behind=2.5, **guards
+):
     """One prediction of two people near a Ridgeback–UR10 driving along +x
-    at 0.3 m/s (its heading at default_q): id 3 catching up from behind at
-    ``velocity`` (m/s), id 4 coming head-on at 1.2 m/s, from the
-    predictor's ``state`` (None: the initial one). Returns the prediction
-    and the predictor's state after it."""
+    at 0.3 m/s (its heading at default_q): id 3 catching up from ``behind``
+    m behind its base's centre at ``velocity`` (m/s), id 4 coming head-on
+    at 1.2 m/s, from the predictor's ``state`` (None: the initial one).
+    Returns the prediction and the predictor's state after it."""
     robot = MobileManipulator("ridgeback_ur10")
     config = PredictionConfig(predictor="orca_kkt", max_humans=2)
     if overtaking is not None:
@@ -89,7 +91,7 @@ def _PredictTwo(overtaking=None, state=None, velocity=(1.4, 0.0), **guards):
     q0 = np.array(robot.default_q, dtype=float)
     estimate = HumanEstimate(
         ids=[3, 4],
-        positions=[q0[:2] + (-2.5, 0.1), q0[:2] + (3.0, -0.1)],
+        positions=[q0[:2] + (-behind, 0.1), q0[:2] + (3.0, -0.1)],
         velocities=[velocity, (-1.2, 0.0)],
     )
     return model.Predict(
@@ -134,6 +136,7 @@ def test_the_defaults_are_the_measured_doorway_configuration():
         45.0,
         90.0,
     )
+    assert not o.guard_close
     assert SafetyConfig().guard_gamma == 1.0
     assert SafetyConfig().guard_gap == 0.2
 
@@ -165,6 +168,25 @@ def test_without_guard_the_overtaker_is_left_out_of_the_guard(guard):
     assert 4 in prediction.guard_steps_by_id
     guarded = _BySlot(prediction, prediction.guarded)
     assert guarded[3] == guard and guarded[4]
+
+
+@pytest.mark.parametrize("behind, held", [(1.2, True), (2.5, False)])
+def test_with_guard_close_an_overtaker_at_the_robots_back_is_held(behind, held):
+    """overtaking.guard_close: an overtaker measured within guard_gap of the
+    robot's nearest body stays in the guard (as anyone that close is held),
+    one farther back is still left out; without it both are left out.
+    Person 3's gap to the base: ~0.3 m at 1.2 m, ~1.6 m at 2.5 m, against
+    a guard_gap of 1 m; the deviation rule holds no one (deviation 1 m)."""
+    guards = dict(guard_deviation=1.0, guard_hold=0.6, guard_gap=1.0)
+    for guard_close, expected in ((True, held), (False, False)):
+        prediction, _ = _PredictTwo(
+            OvertakingConfig(enabled=True, guard_close=guard_close),
+            behind=behind,
+            **guards,
+        )
+        assert bool(_BySlot(prediction, prediction.overtakers)[3])
+        assert (3 in prediction.guard_steps_by_id) == expected
+        assert _BySlot(prediction, prediction.guarded)[3] == expected
 
 
 def test_the_predictor_remembers_its_overtakers_by_id():

@@ -193,17 +193,20 @@ class HumanPredictorModel:
         # the guard's constant-velocity motion (a second, identical barrier
         # row would only double its penalty).
         if cfg.predictor == "orca_kkt":
+            close = self._Close(estimate, distances)
             guards = UpdateGuards(
                 state.guard_steps,
                 estimate,
                 PredictedNow(last_solution, self.control_period, self.dt),
                 deviation=self.guard_deviation,
                 hold_steps=self.guard_hold_steps,
-                close=self._Close(estimate, distances),
+                close=close,
             )
             if not cfg.overtaking.guard:
+                held = set(close) if cfg.overtaking.guard_close else set()
                 for i in slots.slot_ids[behind]:
-                    guards.pop(int(i), None)
+                    if int(i) not in held:
+                        guards.pop(int(i), None)
         guarded = np.array([int(i) in guards for i in slots.slot_ids], dtype=bool)
         prediction = HumanPrediction(
             model=cfg.predictor,
