@@ -71,9 +71,7 @@ def test_an_overtaker_who_steps_aside_stays_one_with_keep_angle():
     assert not Overtaking(p, v, [True] * 4, ROBOT_P, ROBOT_V, config, kept=kept).any()
 
 
-def _PredictTwo(
-    overtaking=None, state=None, velocity=(1.4, 0.0), behind=2.5, **guards
-):
+def _PredictTwo(overtaking=None, state=None, velocity=(1.4, 0.0), behind=2.5, **guards):
     """One prediction of two people near a Ridgeback–UR10 driving along +x
     at 0.3 m/s (its heading at default_q): id 3 catching up from ``behind``
     m behind its base's centre at ``velocity`` (m/s), id 4 coming head-on
