@@ -29,6 +29,7 @@ CAMPAIGNS = (
     "no-overtaking",
     "near-cv",
     "guard-gap-0.5",
+    "guard-close",
 )
 METRICS = (
     ("success", "arrived"),
@@ -80,8 +81,9 @@ for name in CAMPAIGNS:
     Line(name, runs, [(shipped, "− shipped"), (cvmm, "− CVMM")])
 
 # The overtaking rule's other side: SM²ITH without it among people who do
-# not follow its model (no-overtaking-others), against the shipped SM²ITH
-# and CVMM on the same seeds.
+# not follow its model (no-overtaking-others), and with overtakers within
+# the guard's gap held (guard-close, instructed people), against the
+# shipped SM²ITH and CVMM on the same seeds.
 print()
 for people in ("instructed", "social_force"):
 
@@ -108,3 +110,9 @@ for people in ("instructed", "social_force"):
         Others(HERE / "no-overtaking-others" / "doorway.csv", "SM2ITH"),
         [(base, "− shipped"), (others, "− CVMM")],
     )
+    if people == "instructed":
+        Line(
+            "  guard-close",
+            Others(HERE / "guard-close" / "doorway.csv", "SM2ITH"),
+            [(base, "− shipped"), (others, "− CVMM")],
+        )
