@@ -184,9 +184,9 @@ class ControllerConfig:
     # runs out keeps the previous pass's plan, and no pass starts once the
     # budget is spent. Counted in iterations, not seconds, so that a run
     # reproduces from a cloned Context. Only PIQP's iterations on QPs too
-    # wide for HPIPM count. 130 since the fifteenth session (at 100 the
+    # wide for HPIPM count. 120 since the sixteenth session (at 100 the
     # Stretch 3 stood still longer in the doorway: README, Benchmark).
-    qp_iteration_budget: int = 130
+    qp_iteration_budget: int = 120
     # Slack added to |e*| in the lexicographic constraints (eq. stmpc_lex_constr).
     lexicographic_tolerance: float = 1e-3
     # J_eff = ½ Σ w_ν‖ν_k‖² + w_u‖u_k‖².
