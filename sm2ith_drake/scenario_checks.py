@@ -298,9 +298,11 @@ def _ValidatePeople(scenario: Scenario) -> None:
     for name in (
         "turn_speed_floor", "guard_steps", "static_guard_steps", "guard_deviation",
         "guard_hold", "guard_gap", "backup_margin", "human_margin", "obstacle_margin",
+        "no_closer_gap",
     ):  # fmt: skip
         _NonNegative(getattr(s, name), f"safety.{name}")
     _Positive(s.human_slack_weight, "safety.human_slack_weight")
+    _Positive(s.no_closer_slack_weight, "safety.no_closer_slack_weight")
     if not s.obstacle_slack_weight > s.human_slack_weight:
         raise ScenarioError(
             "safety.obstacle_slack_weight must exceed safety.human_slack_weight "

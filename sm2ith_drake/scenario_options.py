@@ -198,6 +198,17 @@ class SafetyConfig:
     # every barrier cannot hold at once (README, "Contact in the safe
     # variant"). Not the default.
     static_guard_steps: int = 0
+    # Optional (0: off, the default; `safe` only, every method alike): every
+    # tracked person measured within no_closer_gap (m, surface to surface)
+    # of the robot's nearest body is held no closer where they stand, over
+    # the base's stopping time: the nearest capsule's barrier against them
+    # must not fall from step to step (h_{k+1} ≥ h_k), under an exact
+    # penalty of no_closer_slack_weight per metre (above a person's
+    # margin, below a wall). In a jam the robot then stands rather than
+    # edging into one person to get away from another (README, Contact in
+    # the safe variant).
+    no_closer_gap: float = 0.0
+    no_closer_slack_weight: float = 1e5
     # "safe": the shipped safety mechanism on top of the paper's DT-CBF (the
     # guards above); "paper": the paper's formulation, the DT-CBF against the
     # prediction only (guard_steps and static_guard_steps ignored). Studies

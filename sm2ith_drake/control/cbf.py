@@ -45,6 +45,8 @@ def ObstacleSegments(obstacles) -> np.ndarray:
 
 # Where the guard rows put a human they do not hold (m): out of reach.
 _UNGUARDED = np.array([1.0e4, 1.0e4])
+# The value of a near row whose person is not near (it holds trivially).
+_FAR_ROW = 1.0e3
 
 
 def _OutOfReach(positions, held):
@@ -81,7 +83,11 @@ class DtCbfGroup(ConstraintGroup):
     keeps out of their way as CVMM would. An extra person has one row per
     step, on the robot's nearest capsule at the linearization point (h of
     the whole robot is the minimum over its capsules), not one per capsule:
-    a sixth of the rows.
+    a sixth of the rows. With ``near_steps`` = G_n > 0 and ``near_gap`` > 0,
+    G_n × H more rows (after the extra ones) hold every person measured
+    within ``near_gap`` (surface to surface) of the robot's nearest body no
+    closer where they stand: the nearest capsule's h_{k+1} ≥ h_k
+    (SafetyConfig.no_closer_gap); ``near_rows`` are their indices.
     """
 
     name = "dt_cbf"
@@ -103,6 +109,8 @@ class DtCbfGroup(ConstraintGroup):
         inside="decay",
         guard_gamma=None,
         guard_inside="exit",
+        near_steps=0,
+        near_gap=0.0,
     ):
         if inside not in ("decay", "exit"):
             raise ValueError(f"inside must be 'decay' or 'exit', not {inside!r}")
@@ -125,19 +133,24 @@ class DtCbfGroup(ConstraintGroup):
         # The moving guard's γ (None or 0, SafetyConfig's default: gamma).
         self.guard_gamma = float(guard_gamma) if guard_gamma else self.gamma
         self._human_offset = robot.capsule_radii[None, :] + human_radius + human_margin
+        self._human_margin = float(human_margin)
         self._obstacle_offset = robot.capsule_radii[None, :] + obstacle_margin
         self.rows_per_step = (H + S) * C
         self.guard_steps = int(min(max(guard_steps, 0), N))
         self.static_guard_steps = int(min(max(static_guard_steps, 0), N))
         E = self.num_extra = int(max(extra_humans, 0))
+        self.near_gap = float(near_gap)
+        near_steps = int(min(max(near_steps, 0), N)) if self.near_gap > 0 else 0
         # Guard row blocks, in row order: (steps, people, which guard).
         self._guards = [
             (self.guard_steps, H * C, "moving"),
             (self.static_guard_steps, H * C, "static"),
             (N if E else 0, E, "extra"),
+            (near_steps, H, "near"),
         ]
         self.num_guard = sum(steps * per_step for steps, per_step, _ in self._guards)
         self.num_rows = N * self.rows_per_step + self.num_guard
+        self.near_rows = np.arange(self.num_rows - near_steps * H, self.num_rows)
         self.guard_p0 = np.zeros((H, 2))
         self.guard_v0 = np.zeros((H, 2))
         self.static_p0 = np.zeros((H, 2))
@@ -203,9 +216,9 @@ class DtCbfGroup(ConstraintGroup):
             ]
         )
         guard = [
-            # An extra person's row is on whichever capsule is nearest.
+            # An extra or near person's row is on whichever capsule is nearest.
             np.broadcast_to(qq.any(axis=0), (steps * per_step, qq.shape[1])).ravel()
-            if which == "extra"
+            if which in ("extra", "near")
             else np.broadcast_to(qq, (steps * per_step // C,) + qq.shape).ravel()
             for steps, per_step, which in self._guards
         ]
@@ -240,7 +253,11 @@ class DtCbfGroup(ConstraintGroup):
         """Every guard block's rows (moving, static, extra) and values."""
         g, vals = [], []
         for steps, _, which in self._guards:
-            if steps:
+            if steps and which == "near":
+                gi, vi = self._NearBlock(point, steps)
+                g.append(gi)
+                vals.append(vi)
+            elif steps:
                 p0, v0 = {
                     "moving": (self.guard_p0, self.guard_v0),
                     "static": (self.static_p0, np.zeros_like(self.static_p0)),
@@ -290,6 +307,26 @@ class DtCbfGroup(ConstraintGroup):
         a = a[..., None]
         vals = np.concatenate([-a * dq[:-1], dq[1:]], axis=3)  # (G, H, ·, 2n)
         return g.ravel(), vals.ravel()
+
+    def _NearBlock(self, point, G):
+        """The rows h_{k+1} − h_k ≥ 0 of the nearest capsule against each
+        person standing where measured (``static_p0``), k < G; a person not
+        within ``near_gap`` of the robot at knot 0 (the measured
+        configuration) has rows that hold trivially."""
+        p0 = self.static_p0
+        g, vals = self._GuardBlock(
+            point, G, p0, np.zeros_like(p0), nearest=True, gamma=0.0, hold=True
+        )
+        ends = point.kin.capsule_points[0, :, :, :2]  # (C, 2, 2)
+        d, _, _ = point_segment_distance_2d(
+            ends[None, :, 0], ends[None, :, 1], p0[:, None, :]
+        )  # (H, C)
+        gap = np.min(d - self._human_offset, axis=1) + self._human_margin
+        far = np.broadcast_to(gap >= self.near_gap, (G, len(p0)))
+        g = np.where(far.ravel(), _FAR_ROW, g)
+        vals = vals.reshape(G, len(p0), -1)
+        vals[far] = 0.0
+        return g, vals.ravel()
 
     def _Decay(self, h, gamma=None):
         """The factor (1 − γ) of h_k in each row h_{k+1} − (1 − γ) h_k ≥ 0,

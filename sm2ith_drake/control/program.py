@@ -74,6 +74,12 @@ def GuardSteps(safety: SafetyConfig, robot, time_step: float) -> int:
     return steps
 
 
+def NearSteps(robot, time_step: float) -> int:
+    """The steps SafetyConfig.no_closer_gap holds: the base's stopping
+    time, at least one."""
+    return max(1, int(np.ceil(BaseStoppingTime(robot) / time_step - 1e-9)))
+
+
 class MpcProgram:
     """The groups and bounds shared by every stage of the hierarchy."""
 
@@ -167,6 +173,12 @@ class MpcProgram:
                 inside=safety.inside_barrier,
                 guard_gamma=safety.guard_gamma,
                 guard_inside=safety.guard_inside,
+                # SafetyConfig.no_closer_gap, `safe` only, every method
+                # alike, over the base's stopping time.
+                near_steps=NearSteps(robot, time_step)
+                if predictor is not None and safety.mode == "safe"
+                else 0,
+                near_gap=safety.no_closer_gap,
             )
             nr = self.cbf.num_rows
             self.extra_constraints.append((self.cbf, np.zeros(nr), np.full(nr, np.inf)))
@@ -193,6 +205,8 @@ class MpcProgram:
             self.linear_cost[self.cbf.slack] = safety.human_slack_weight
             walls = self.cbf.slack[self.cbf.obstacle_rows]
             self.linear_cost[walls] = safety.obstacle_slack_weight
+            near = self.cbf.slack[self.cbf.near_rows]
+            self.linear_cost[near] = safety.no_closer_slack_weight
             lower[self.cbf.slack] = 0.0
         self.variable_lower = lower
         self.variable_upper = upper
