@@ -495,12 +495,15 @@ def test_contact_is_the_robots_doing_only_when_the_robot_closes_in(stretch):
     assert m["min_human_gap"] == pytest.approx(-0.09)
     assert m["collision_samples"] == 3
     assert m["robot_closing_contact_samples"] == 2
+    # 5 cm in each of the two samples in which it moved deeper.
+    assert m["robot_closing_distance"] == pytest.approx(0.10)
     # The same gaps with the person walking into a robot that stands still.
     log = _ApproachLog(stretch, [0.0] * 6, [-c - g for g in gaps])
     m = HumanMetrics(log, stretch, [0.3])
     assert m["min_human_gap"] == pytest.approx(-0.09)
     assert m["collision_samples"] == 3
     assert m["robot_closing_contact_samples"] == 0
+    assert m["robot_closing_distance"] == 0.0
     # The robot backing off (1 cm a sample) from a person who pushes in
     # faster (6 cm): contact throughout, never the robot's doing.
     robot_x = [0.01 * i for i in range(6)]

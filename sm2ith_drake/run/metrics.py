@@ -62,8 +62,9 @@ ROBOT_CLOSING_TOLERANCE = 1e-3
 
 
 def RobotClosingContacts(robot, states, human_positions, gap, dist) -> np.ndarray:
-    """(T,) whether, in each sample, someone is in contact (gap < 0) and the
-    robot's own motion since the previous sample closed the gap to them.
+    """(T, H) how far (m) the robot's own motion since the previous sample
+    closed the gap to each person it is in contact with (gap < 0), where
+    that is more than ROBOT_CLOSING_TOLERANCE; 0 elsewhere.
 
     The change of the distance between two samples splits exactly into the
     robot's part, d(q_t, p_{t−1}) − d(q_{t−1}, p_{t−1}), and the person's,
@@ -72,14 +73,13 @@ def RobotClosingContacts(robot, states, human_positions, gap, dist) -> np.ndarra
     arm swept into a person by a turning base is the robot closing in."""
     x = np.asarray(states, dtype=float)
     P = np.asarray(human_positions, dtype=float)
-    closing = np.zeros(len(x), dtype=bool)
+    closing = np.zeros(np.shape(gap))
     if len(x) < 2 or P.size == 0:
         return closing
     robot_moved = HumanDistances(robot, x[1:], P[:-1])  # d(q_t, p_{t−1})
     robot_part = robot_moved - dist[:-1]
-    closing[1:] = np.any(
-        (gap[1:] < 0) & (robot_part < -ROBOT_CLOSING_TOLERANCE), axis=1
-    )
+    doing = (gap[1:] < 0) & (robot_part < -ROBOT_CLOSING_TOLERANCE)
+    closing[1:] = np.where(doing, -robot_part, 0.0)
     return closing
 
 
@@ -93,7 +93,8 @@ def HumanMetrics(log, robot, human_radii) -> dict:
     robot body (base or arm link capsule). ``collision_samples``: samples
     in which any body touches anyone; ``robot_closing_contact_samples``:
     those in which the robot's own motion closed in on the person touched
-    (RobotClosingContacts)."""
+    (RobotClosingContacts); ``robot_closing_distance``: how far (m) it
+    closed in on them, summed over those samples and people."""
     if not log.human_positions:
         return {}
     dist = HumanDistances(robot, log.states, log.human_positions)  # (T, H)
@@ -103,16 +104,14 @@ def HumanMetrics(log, robot, human_radii) -> dict:
     dt = _SampleDurations(log.times)
     inside = np.any(dist < INTIMATE_DISTANCE, axis=1)
     inside_base = np.any(base < INTIMATE_DISTANCE, axis=1)
+    closing = RobotClosingContacts(robot, log.states, log.human_positions, gap, dist)
     return {
         "min_human_distance": float(dist.min()),
         "min_human_gap": float(gap.min()),
         "mean_human_distance": float(dist.mean()),
         "collision_samples": int(np.sum(np.any(gap < 0, axis=1))),
-        "robot_closing_contact_samples": int(
-            np.sum(
-                RobotClosingContacts(robot, log.states, log.human_positions, gap, dist)
-            )
-        ),
+        "robot_closing_contact_samples": int(np.sum(np.any(closing > 0, axis=1))),
+        "robot_closing_distance": float(np.sum(closing)),
         "intimate_space_time": float(np.sum(dt[inside])),
         "intimate_space_time_base": float(np.sum(dt[inside_base])),
     }
@@ -299,6 +298,7 @@ _SUMMARY_COLUMNS = (
     "min_human_gap",
     "collision_samples",
     "robot_closing_contact_samples",
+    "robot_closing_distance",
     "step_time_median_ms",
     "step_time_p95_ms",
     "step_time_max_ms",

@@ -45,7 +45,7 @@ def Classify(row):
     study = STUDIES[row["study"]]
     scenario = LoadRunScenario(SpecFromRow(study, row))
     robot, t, x, P, V, dist, gap = Resimulate(scenario)
-    closing = RobotClosingContacts(robot, x, P, gap, dist)
+    closing = RobotClosingContacts(robot, x, P, gap, dist).any(axis=1)
     i, j = np.unravel_index(np.argmin(gap), gap.shape)
     lo, hi = max(i - 1, 0), min(i + 1, len(t) - 1)
     v_base = (x[hi, :2] - x[lo, :2]) / max(t[hi] - t[lo], 1e-9)

@@ -107,7 +107,7 @@ def main(run_id, window, directory=HERE):
 
     mpc_controller.MpcController.Step = Step
     robot, t, x, P, V, dist, gap = Resimulate(scenario)
-    closing = RobotClosingContacts(robot, x, P, gap, dist)
+    closing = RobotClosingContacts(robot, x, P, gap, dist).any(axis=1)
     k = int(np.argmin(gap.min(axis=1)))
     print(f"{run_id}: success {row['success']}, min gap {gap.min():+.3f} m", end="")
     print(f" at {t[k]:.2f} s")
