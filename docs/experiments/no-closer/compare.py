@@ -11,9 +11,10 @@ mm) is read from CAMPAIGN_DIR/closing.csv and this directory's
 closing_shipped.csv where the campaign CSVs do not carry it (closing.py
 writes them; a run without robot_closing_contact closed in by 0).
 
-The shipped runs: docs/experiments/doorway-30-89b0a40 (1–3 people, every
-method; 5 people CVMM and React) and docs/experiments/qp-budget-130/
-budget-120 (SM²ITH with 5 people, whose plans changed with the budget).
+The shipped runs: docs/experiments/doorway-30-89b0a40 (the Stretch 3, 1–3
+people, every method; 5 people CVMM and React), final-89b0a40 (the same
+for the Ridgeback–UR10, 10 seeds) and qp-budget-130/budget-120 (SM²ITH with
+5 people, whose plans changed with the budget).
 """
 
 import csv
@@ -33,26 +34,31 @@ METRICS = (
 )
 
 
-def Runs(path, method, people="orca"):
+def Runs(path, method, people="orca", robot="stretch3"):
     return {
         (r["humans"], r["seed"]): r
         for r in ReadRows(path)
         if r["method"] == method
         and r["variant"] == "safe"
         and r["people"] == people
-        and r["robot"] == "stretch3"
+        and r["robot"] == robot
     }
 
 
-def Shipped(method, people="orca"):
-    runs = Runs(EXPERIMENTS / "doorway-30-89b0a40" / "doorway.csv", method, people)
+def Shipped(method, people="orca", robot="stretch3"):
+    """The shipped controller's runs: the Stretch 3's 30-seed set, the
+    Ridgeback–UR10's 10 seeds (final-89b0a40), SM²ITH's 5-person runs from
+    the budget's re-run."""
+    base = "doorway-30-89b0a40" if robot == "stretch3" else "final-89b0a40"
+    runs = Runs(EXPERIMENTS / base / "doorway.csv", method, people, robot)
     if method == "SM2ITH":
         runs = {k: r for k, r in runs.items() if str(r["humans"]) != "5"}
         runs.update(
             Runs(
-                EXPERIMENTS / "qp-budget-130" / "budget-120" / "doorway_stretch3.csv",
+                EXPERIMENTS / "qp-budget-130" / "budget-120" / f"doorway_{robot}.csv",
                 method,
                 people,
+                robot,
             )
         )
     return runs
@@ -135,11 +141,12 @@ if __name__ == "__main__":
     methods = sys.argv[2:] or ["SM2ITH"]
     new_closing = ClosingMm(campaign / "closing.csv")
     base_closing = ClosingMm(Path(__file__).parent / "closing_shipped.csv")
-    for people in ("orca", "instructed", "social_force"):
-        for method in methods:
-            new = Runs(campaign / "doorway.csv", method, people)
-            if new:
-                base = Shipped(method, people)
-                AddClosing(new, new_closing)
-                AddClosing(base, base_closing)
-                Compare(new, base, f"{method}, {people}")
+    for robot in ("stretch3", "ridgeback_ur10"):
+        for people in ("orca", "instructed", "social_force"):
+            for method in methods:
+                new = Runs(campaign / "doorway.csv", method, people, robot)
+                if new:
+                    base = Shipped(method, people, robot)
+                    AddClosing(new, new_closing)
+                    AddClosing(base, base_closing)
+                    Compare(new, base, f"{robot}, {method}, {people}")
