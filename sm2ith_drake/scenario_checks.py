@@ -296,20 +296,18 @@ def _ValidatePeople(scenario: Scenario) -> None:
     _OneOf(s.inside_barrier, ("decay", "exit"), "safety.inside_barrier")
     _OneOf(s.guard_inside, ("exit", "hold"), "safety.guard_inside")
     for name in (
-        "turn_speed_floor", "guard_steps", "static_guard_steps", "guard_deviation",
-        "guard_hold", "guard_gap", "backup_margin", "human_margin", "obstacle_margin",
-        "no_closer_gap",
-    ):  # fmt: skip
+        "turn_speed_floor guard_steps static_guard_steps guard_deviation guard_hold "
+        "guard_gap backup_margin human_margin obstacle_margin no_closer_gap"
+    ).split():
         _NonNegative(getattr(s, name), f"safety.{name}")
-    _Positive(s.human_slack_weight, "safety.human_slack_weight")
-    _Positive(s.no_closer_slack_weight, "safety.no_closer_slack_weight")
+    for name in ("human_slack_weight", "no_closer_slack_weight", "human_radius"):
+        _Positive(getattr(s, name), f"safety.{name}")
     if not s.obstacle_slack_weight > s.human_slack_weight:
         raise ScenarioError(
             "safety.obstacle_slack_weight must exceed safety.human_slack_weight "
             f"(a wall outranks a person's margin), got {s.obstacle_slack_weight} "
             f"against {s.human_slack_weight}"
         )
-    _Positive(s.human_radius, "safety.human_radius")
     pc = scenario.perception
     _OneOf(pc.estimator, ("kalman", "truth"), "perception.estimator")
     _NonNegative(pc.noise, "perception.noise")
