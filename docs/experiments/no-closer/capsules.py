@@ -8,23 +8,16 @@ sample, from T0 to T1 s. The traced social-force contact:
         4 14.1 15.6
 """
 
-import importlib.util
 import sys
-from pathlib import Path
 
 import numpy as np
+from final_trace import TRACE
 
 from sm2ith_drake.geometry import point_segment_distance_2d
 
-_SPEC = importlib.util.spec_from_file_location(
-    "final_trace", Path(__file__).parents[1] / "final-2026-11-28" / "trace.py"
-)
-_TRACE = importlib.util.module_from_spec(_SPEC)
-_SPEC.loader.exec_module(_TRACE)
-
 
 def main(run_id, csv_path, person, t0, t1):
-    _, scenario, robot, t, x, P, _, _ = _TRACE.ResimulateRun(
+    _, scenario, robot, t, x, P, _, _ = TRACE.ResimulateRun(
         csv_path, "doorway", run_id, lambda new, kwargs: None
     )
     j = int(person)

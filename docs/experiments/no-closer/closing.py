@@ -11,28 +11,21 @@ Writes OUT (run_id, samples, closing_mm, largest_mm) and prints it.
 """
 
 import csv
-import importlib.util
 import sys
 from multiprocessing import Pool
-from pathlib import Path
 
 import numpy as np
+from final_trace import TRACE
 
 from sm2ith_drake.experiments.campaign import ReadRows
 from sm2ith_drake.experiments.runs import LoadRunScenario, SpecFromRow
 from sm2ith_drake.experiments.studies import STUDIES
 from sm2ith_drake.run.metrics import RobotClosingContacts
 
-_SPEC = importlib.util.spec_from_file_location(
-    "final_trace", Path(__file__).parents[1] / "final-2026-11-28" / "trace.py"
-)
-_TRACE = importlib.util.module_from_spec(_SPEC)
-_SPEC.loader.exec_module(_TRACE)
-
 
 def Closing(row):
     scenario = LoadRunScenario(SpecFromRow(STUDIES[row["study"]], row))
-    robot, _, x, P, _, dist, gap = _TRACE.Resimulate(scenario)
+    robot, _, x, P, _, dist, gap = TRACE.Resimulate(scenario)
     closing = RobotClosingContacts(robot, x, P, gap, dist)  # (T, H) m
     return (
         row["run_id"],

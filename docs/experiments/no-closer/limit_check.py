@@ -8,18 +8,12 @@ robot stops it).
         docs/experiments/no-closer/gap-0.05-instructed-social-force/doorway.csv
 """
 
-import importlib.util
 import sys
-from pathlib import Path
 
 import numpy as np
+from final_trace import TRACE
 
-spec = importlib.util.spec_from_file_location(
-    "t", Path(__file__).parents[1] / "final-2026-11-28" / "trace.py"
-)
-T = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(T)
-row, sc, robot, t, x, P, V, gap = T.ResimulateRun(
+row, sc, robot, t, x, P, V, gap = TRACE.ResimulateRun(
     sys.argv[2], "doorway", sys.argv[1], lambda a, b: None
 )
 n = robot.num_positions

@@ -9,20 +9,13 @@ controller counts as near, the planned gap to where the person stands
         docs/experiments/no-closer/gap-0.05-instructed-social-force/doorway.csv
 """
 
-import importlib.util
 import sys
-from pathlib import Path
 
 import numpy as np
+from final_trace import TRACE
 
 from sm2ith_drake.control import mpc_controller
 from sm2ith_drake.geometry import point_segment_distance_2d
-
-_SPEC = importlib.util.spec_from_file_location(
-    "final_trace", Path(__file__).parents[1] / "final-2026-11-28" / "trace.py"
-)
-_TRACE = importlib.util.module_from_spec(_SPEC)
-_SPEC.loader.exec_module(_TRACE)
 
 WRIST_YAW = 4  # the Stretch 3's ν: v, ω, lift, arm, wrist yaw, wrist pitch
 
@@ -41,7 +34,7 @@ def main(run_id, csv_path, t0=14.6, t1=15.6):
 
     mpc_controller.MpcController.Step = Step
     try:
-        _, scenario, robot, *_ = _TRACE.ResimulateRun(
+        _, scenario, robot, *_ = TRACE.ResimulateRun(
             csv_path, "doorway", run_id, Record
         )
     finally:

@@ -1,0 +1,13 @@
+"""The final re-run's trace module (docs/experiments/final-2026-11-28/trace.py:
+Resimulate, ResimulateRun), loaded from its file for this directory's
+scripts: its own name would otherwise be the standard library's
+``trace``."""
+
+import importlib.util
+from pathlib import Path
+
+_SPEC = importlib.util.spec_from_file_location(
+    "final_trace", Path(__file__).parents[1] / "final-2026-11-28" / "trace.py"
+)
+TRACE = importlib.util.module_from_spec(_SPEC)
+_SPEC.loader.exec_module(TRACE)
