@@ -15,7 +15,7 @@ import sys
 from multiprocessing import Pool
 
 import numpy as np
-from final_trace import TRACE
+from final_trace import TRACE, JobsOption
 
 from sm2ith_drake.experiments.campaign import ReadRows
 from sm2ith_drake.experiments.runs import LoadRunScenario, SpecFromRow
@@ -36,11 +36,7 @@ def Closing(row):
 
 
 def main(argv):
-    jobs = 2
-    if "--jobs" in argv:
-        k = argv.index("--jobs")
-        jobs = int(argv[k + 1])
-        argv = argv[:k] + argv[k + 2 :]
+    jobs, argv = JobsOption(argv)
     path, pattern, out = argv
     rows = [
         r

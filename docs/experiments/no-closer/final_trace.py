@@ -11,3 +11,11 @@ _SPEC = importlib.util.spec_from_file_location(
 )
 TRACE = importlib.util.module_from_spec(_SPEC)
 _SPEC.loader.exec_module(TRACE)
+
+
+def JobsOption(argv, default=2):
+    """(N of ``--jobs N`` in argv, or ``default``; argv without it)."""
+    if "--jobs" not in argv:
+        return default, list(argv)
+    k = argv.index("--jobs")
+    return int(argv[k + 1]), argv[:k] + argv[k + 2 :]
