@@ -1,7 +1,7 @@
 """The final re-run's trace module (docs/experiments/final-2026-11-28/trace.py:
 Resimulate, ResimulateRun), loaded from its file for this directory's
-scripts: its own name would otherwise be the standard library's
-``trace``."""
+scripts (its own name would otherwise be the standard library's
+``trace``), and their ``--jobs`` option."""
 
 import importlib.util
 from pathlib import Path
