@@ -277,14 +277,17 @@ class DtCbfGroup(ConstraintGroup):
                 vals.append(vi)
         return np.concatenate(g), np.concatenate(vals)
 
-    def _GuardBlock(self, point, G, p0, v0, nearest=False, gamma=None, hold=False):
+    def _GuardBlock(
+        self, point, G, p0, v0, nearest=False, gamma=None, hold=False, with_h=False
+    ):
         """h(q_{k+1}, p0 + (k+1)Δt v0) − (1 − γ) h(q_k, p0 + kΔt v0) for
         k < G, and their q_k, q_{k+1} gradients: per capsule, or with
         ``nearest`` of the whole robot (the nearest capsule at each knot);
         ``gamma`` replaces γ (None: the barrier's). With ``hold``, a row
         whose h_k < 0 at the linearization point (the robot already inside
         the margin of the person moving on) is h_{k+1} − h_k ≥ 0 instead:
-        no closer, rather than out at once (SafetyConfig.guard_inside)."""
+        no closer, rather than out at once (SafetyConfig.guard_inside). With
+        ``with_h``, h at the knots 0 … G, (G+1, H, C or 1), is returned too."""
         kin = point.kin
         ends = kin.capsule_points[: G + 1, :, :, :2]  # knots 0 … G
         jac = kin.capsule_jacobians[: G + 1, :, :, :2, :]
@@ -306,6 +309,8 @@ class DtCbfGroup(ConstraintGroup):
         g = h[1:] - a * h[:-1]  # (G, H, C or 1)
         a = a[..., None]
         vals = np.concatenate([-a * dq[:-1], dq[1:]], axis=3)  # (G, H, ·, 2n)
+        if with_h:
+            return g.ravel(), vals.ravel(), h
         return g.ravel(), vals.ravel()
 
     def _NearBlock(self, point, G):
@@ -314,14 +319,17 @@ class DtCbfGroup(ConstraintGroup):
         within ``near_gap`` of the robot at knot 0 (the measured
         configuration) has rows that hold trivially."""
         p0 = self.static_p0
-        g, vals = self._GuardBlock(
-            point, G, p0, np.zeros_like(p0), nearest=True, gamma=0.0, hold=True
+        g, vals, h = self._GuardBlock(
+            point,
+            G,
+            p0,
+            np.zeros_like(p0),
+            nearest=True,
+            gamma=0.0,
+            hold=True,
+            with_h=True,
         )
-        ends = point.kin.capsule_points[0, :, :, :2]  # (C, 2, 2)
-        d, _, _ = point_segment_distance_2d(
-            ends[None, :, 0], ends[None, :, 1], p0[:, None, :]
-        )  # (H, C)
-        gap = np.min(d - self._human_offset, axis=1) + self._human_margin
+        gap = h[0, :, 0] + self._human_margin  # the nearest body's, at knot 0
         far = np.broadcast_to(gap >= self.near_gap, (G, len(p0)))
         g = np.where(far.ravel(), _FAR_ROW, g)
         vals = vals.reshape(G, len(p0), -1)

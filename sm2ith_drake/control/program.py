@@ -68,15 +68,14 @@ def GuardSteps(safety: SafetyConfig, robot, time_step: float) -> int:
     guard_stopping_time at least the base's stopping time in steps)."""
     steps = int(safety.guard_steps)
     if safety.guard_stopping_time and steps > 0:
-        # (A hair of tolerance: 0.6 s of 0.2 s steps is 3 steps, not 4.)
-        stopping = int(np.ceil(BaseStoppingTime(robot) / time_step - 1e-9))
-        steps = max(steps, stopping)
+        steps = max(steps, NearSteps(robot, time_step))
     return steps
 
 
 def NearSteps(robot, time_step: float) -> int:
-    """The steps SafetyConfig.no_closer_gap holds: the base's stopping
-    time, at least one."""
+    """The base's stopping time in steps, at least one: what
+    SafetyConfig.no_closer_gap holds, and guard_stopping_time's least."""
+    # (A hair of tolerance: 0.6 s of 0.2 s steps is 3 steps, not 4.)
     return max(1, int(np.ceil(BaseStoppingTime(robot) / time_step - 1e-9)))
 
 
