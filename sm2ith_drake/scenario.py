@@ -122,17 +122,14 @@ class ControllerConfig:
     # non-final pass's first stage; when that stage's plan fails it, the
     # pass's lower stages are skipped and the next pass linearizes at that
     # plan (one QP fewer in a step that needs two passes, but the lower
-    # stages then get one linearization instead of two). Deterministic,
-    # like the rule itself. Measured (bench, 2026-11-24, three runs, off →
-    # on): 10 people median 256–264 → 200–205 ms (Ridgeback–UR10) and
-    # 178–184 → 141–144 ms (Stretch 3); 3 people p95 87–91 → 71–75 and
-    # 65–71 → 54–59 ms, median +1 to +3 ms; KKT faithfulness 99.16 → 99.01 %
-    # within 1e-2 m/s. But on the head-on study with 30 paired seeds (360
-    # runs) SM²ITH reached the goal in 168 of 180 runs instead of 178 (12
-    # lost, 2 gained: stalls short of the goal after turning round for the
-    # person) and its mean EE error grew 6 %: in a two-pass step the lower
-    # stages get one linearization instead of two. Off (README, Benchmark).
+    # stages then get one linearization instead of two). Deterministic.
+    # Measured (README, Benchmark): faster, but on the head-on study with 30
+    # paired seeds SM²ITH reached the goal in 168 of 180 runs instead of 178.
     rti_early_pass_check: bool = False
+    # The arm's joint limits also between the knots: q_k + (Δt/2) ν_k within
+    # them (control/joint_limits.py; README, Doorway). False: at the knots
+    # only, as eq. htmpc_limits is written.
+    joint_limits_between_knots: bool = True
     # Where HPIPM's interior point starts a stage QP (HPIPM only; PIQP
     # starts cold). "point": from the QP's linearization point (HPIPM's
     # primal warm start; in a step's first pass the shifted previous plan,

@@ -119,7 +119,7 @@ def test_every_group_jacobian_matches_central_differences(
     program = c.program
     groups = _Groups(c)
     names = {g.name for g in groups}
-    expected = {"dynamics", "self_collision", "dt_cbf"} | {
+    expected = {"dynamics", "self_collision", "joint_peaks", "dt_cbf"} | {
         f"task:{t.name}" for t in c.tasks
     }
     if with_people:

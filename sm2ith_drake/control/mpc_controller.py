@@ -190,6 +190,7 @@ class MpcController:
             predictor=self.predictor,
             safety=safety,
             obstacle_segments=segments,
+            joint_limits_between_knots=config.joint_limits_between_knots,
         )
         self.solver = HierarchicalSolver(
             self.program,

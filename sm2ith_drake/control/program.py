@@ -17,7 +17,8 @@ variables and groups (control/prediction/). The program holds:
 - the robot dynamics (eqs. htmpc_dyn, smith_robdyn: DynamicsGroup);
 - the state and input limits as variable bounds (eqs. htmpc_limits,
   smith_limits) and the initial condition pinned by bounds (eqs. htmpc_init,
-  smith_init: VariableBounds);
+  smith_init: VariableBounds), and the arm's limits between the knots
+  (control/joint_limits.py);
 - self-collision (eqs. htmpc_self_collision, smith_self_collision);
 - the predictor's groups: for SM²ITH the human dynamics and the ORCA KKT
   system (eqs. smith_humdyn, smith_kkt_*; control/prediction/kkt_groups.py);
@@ -36,6 +37,7 @@ from sm2ith_drake.control.groups import (
     LinearizationPoint,
     VariableLayout,
 )
+from sm2ith_drake.control.joint_limits import JointPeakGroup, WidenForBraking
 from sm2ith_drake.control.profiling import PROFILER
 from sm2ith_drake.control.robot_groups import (
     DynamicsGroup,
@@ -45,11 +47,7 @@ from sm2ith_drake.control.robot_groups import (
 )
 from sm2ith_drake.control.separation import TurnLimits
 from sm2ith_drake.control.tasks import Task
-from sm2ith_drake.robots.planar_base import (
-    NUM_BASE_POSITIONS,
-    ArmVelocityIndex,
-    BaseStoppingTime,
-)
+from sm2ith_drake.robots.planar_base import BaseStoppingTime
 from sm2ith_drake.scenario import SafetyConfig
 
 # Exact-penalty weights of constraint slacks (large against task costs of
@@ -95,6 +93,7 @@ class MpcProgram:
         predictor=None,
         safety=None,
         obstacle_segments=None,
+        joint_limits_between_knots=True,
     ):
         """``predictor`` (humans/predictors.py) adds the human variables and
         its constraints; with humans or ``obstacle_segments`` (S, 2, 2), the
@@ -112,6 +111,12 @@ class MpcProgram:
         self.self_collision = SelfCollisionGroup(robot, L)
         self.self_collision_distance = self_collision_distance
         self.task_groups = {t.name: TaskErrorGroup(t, L) for t in self.tasks}
+        # The arm's limits between the knots (control/joint_limits.py).
+        self.joint_peaks = (
+            JointPeakGroup(robot, L, time_step)
+            if joint_limits_between_knots
+            else None
+        )
         # Extra groups from the human predictor and the DT-CBF safety
         # constraints: (group, lower, upper).
         self.extra_constraints: list[
@@ -216,7 +221,7 @@ class MpcProgram:
         )
         self._turn_bounds = None  # (the state's bytes, TurnBounds of it)
         # Joint bounds that follow full braking where a joint cannot stop
-        # before its limit (see _WidenForBraking); False only to show that
+        # before its limit (see WidenForBraking); False only to show that
         # the QP is infeasible without them.
         self.braking_consistent_bounds = True
 
@@ -245,7 +250,9 @@ class MpcProgram:
         # still consistent because only ν_1.. are bounded by the limits.
         lower[L.nu[0]] = upper[L.nu[0]] = nu0
         if self.braking_consistent_bounds:
-            self._WidenForBraking(lower, upper, q0, nu0)
+            WidenForBraking(self.robot, L, self.time_step, lower, upper, q0, nu0)
+        if self.joint_peaks is not None:
+            self.joint_peaks.SetState(q0, nu0)
         if self.predictor is not None:
             self.predictor.ApplyBounds(lower, upper)
             if self.cbf is not None and self.cbf.num_guard:
@@ -323,32 +330,6 @@ class MpcProgram:
         lower[cols] = np.maximum(lower[cols], bounds[0][1:])
         upper[cols] = np.minimum(upper[cols], bounds[1][1:])
 
-    def _WidenForBraking(self, lower, upper, q0, nu0) -> None:
-        """Keeps the problem feasible when an arm joint moves toward a limit
-        too fast to stop before it: at every knot where full braking would
-        still pass the limit, the bound becomes the braking trajectory's
-        position, held for the rest of the horizon once braking has stopped
-        the joint (the plan then brakes that joint; the robot itself stops
-        at the limit). Without this the QP is infeasible and the step falls
-        back, although braking is exactly what the plan should do."""
-        L, dt, robot = self.layout, self.time_step, self.robot
-        n = robot.num_positions
-        arm_q = np.arange(NUM_BASE_POSITIONS, n)
-        arm_nu = ArmVelocityIndex(robot, arm_q)
-        v = np.asarray(nu0, dtype=float)[arm_nu].copy()
-        if not np.all(np.isfinite(v)) or not np.any(v):
-            return
-        a = np.minimum(-robot.nudot_lower[arm_nu], robot.nudot_upper[arm_nu])
-        q = np.asarray(q0, dtype=float)[arm_q].copy()
-        for k in range(1, L.N + 1):
-            v_next = np.sign(v) * np.maximum(np.abs(v) - a * dt, 0.0)
-            q = q + 0.5 * dt * (v + v_next)
-            v = v_next
-            cols = np.asarray(L.q[k])[arm_q]
-            # Past the limit the joint may stay where braking stopped it.
-            upper[cols] = np.maximum(upper[cols], q)
-            lower[cols] = np.minimum(lower[cols], q)
-
     @PROFILER.Timed("kinematics")
     def MakePoint(self, z: np.ndarray, targets: dict) -> LinearizationPoint:
         q, nu, u = self.layout.Split(z)
@@ -424,4 +405,7 @@ class MpcProgram:
                     np.full(nr, np.inf),
                 )
             )
+        if self.joint_peaks is not None and self.joint_peaks.num_rows:
+            peaks = self.joint_peaks
+            out.append((peaks, peaks.lower, peaks.upper))
         return out + list(self.extra_constraints)
