@@ -113,9 +113,7 @@ class MpcProgram:
         self.task_groups = {t.name: TaskErrorGroup(t, L) for t in self.tasks}
         # The arm's limits between the knots (control/joint_limits.py).
         self.joint_peaks = (
-            JointPeakGroup(robot, L, time_step)
-            if joint_limits_between_knots
-            else None
+            JointPeakGroup(robot, L, time_step) if joint_limits_between_knots else None
         )
         # Extra groups from the human predictor and the DT-CBF safety
         # constraints: (group, lower, upper).
