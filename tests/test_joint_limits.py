@@ -138,3 +138,23 @@ def test_group_rows_and_bounds():
     group.SetState(q0, np.zeros(robot.num_velocities))
     np.testing.assert_array_equal(group.upper, np.tile(robot.q_upper[arm_q], 10))
     np.testing.assert_array_equal(group.lower, np.tile(robot.q_lower[arm_q], 10))
+
+
+def test_far_rows_are_those_well_inside_both_limits():
+    """FarRows (PIQP may leave a row out and check it at its solution)
+    marks exactly the rows more than the distance inside both bounds."""
+    controller, robot, dt = _Controller(True)
+    group = controller.program.joint_peaks
+    q = np.tile(np.array(robot.default_q, dtype=float), (11, 1))
+    q[:, WRIST] = 0.19  # 1 cm inside its upper limit
+    layout = controller.program.layout
+    z = np.zeros(layout.num_variables)
+    z[layout.q] = q
+    point = controller.program.MakePoint(z, {})
+    g, _ = group.Eval(point)
+    far = group.FarRows(point, 0.05)
+    inside = np.minimum(g - group.lower, group.upper - g)
+    np.testing.assert_array_equal(far, inside > 0.05)
+    per_knot = group.num_rows // layout.N  # lift, arm, wrist yaw, wrist pitch
+    wrist_rows = np.arange(layout.N) * per_knot + 2
+    assert not np.any(far[wrist_rows]) and np.any(far)

@@ -80,6 +80,9 @@ class JointPeakGroup(ConstraintGroup):
     measured state: nothing lasts between steps)."""
 
     name = "joint_peaks"
+    # FarRows' threshold: controller.lazy_barrier_distance (0.5), in rad or
+    # m here; a joint that far from both limits is left out of PIQP's QPs
+    # and checked at the solution.
 
     def __init__(self, robot, layout: VariableLayout, time_step: float):
         self._robot = robot
@@ -104,6 +107,14 @@ class JointPeakGroup(ConstraintGroup):
     def Eval(self, point):
         g = point.q[1:, self._arm_q] + 0.5 * self._dt * point.nu[1:, self._arm_nu]
         return g.ravel(), self._values
+
+    def FarRows(self, point, distance):
+        """Rows more than ``distance`` (rad or m) inside both bounds at
+        ``point``: a QP solver may leave them out and check them at its
+        solution (ConstraintGroup.FarRows)."""
+        g, _ = self.Eval(point)
+        far = (g - self.lower > distance) & (self.upper - g > distance)
+        return far if np.any(far) else None
 
     def SetState(self, q0, nu0) -> None:
         """The bounds for the measured state (q0, ν0) (class doc)."""

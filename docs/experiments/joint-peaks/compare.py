@@ -29,6 +29,8 @@ def main(argv):
                     base = Shipped(method, people, robot)
                 else:
                     base = Runs(Path(base_dir) / "doorway.csv", method, people, robot)
+                if not set(new) & set(base):
+                    continue
                 AddClosing(new, {})
                 AddClosing(base, closing)
                 Compare(new, base, f"{robot}, {method}, {people}")
