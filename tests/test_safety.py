@@ -86,11 +86,10 @@ FULL_CASES = [
 ]
 
 
-# Known regressions of the defaults of 469abf3 (prediction.overtaking with
-# safety.guard_gamma 1; README, Contact in the safe variant), kept as strict
-# expected failures so that a fix shows: this run touches an ORCA person by
-# 4.8 mm, and keeps 89 mm with guard_gamma 0 and 118 mm with the overtakers
-# kept in the guard (overtaking.guard true).
+# Known regressions, kept as strict expected failures so that a fix shows.
+# (SM²ITH's 4.8 mm contact in crossing_ridgeback_ur10_2h, seed 0, of
+# 469abf3's defaults is gone since the joint rows between the knots of the
+# seventeenth session: that run now keeps 78 mm from everyone.)
 #
 # With safety.turn_monitoring on by default (89b0a40), CVMM on the
 # Ridgeback–UR10 touches an ORCA person by 5.6 mm for 0.1 s in seed 1 (34
@@ -98,9 +97,6 @@ FULL_CASES = [
 # the base turns clockwise at ~0.5 rad/s and translates while the person,
 # who changed course, passes its arm (traced: README, Contact).
 KNOWN_CONTACTS = {
-    ("crossing_ridgeback_ur10_2h", "orca_kkt", "orca", 0): (
-        "469abf3: 4.8 mm contact among ORCA people (README, Contact)"
-    ),
     ("crossing_ridgeback_ur10_1h", "cvmm", "orca", 1): (
         "89b0a40: 5.6 mm contact among ORCA people with the turn monitoring"
         " (README, Contact)"
