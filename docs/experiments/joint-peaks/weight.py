@@ -10,8 +10,6 @@ controller of the campaign (a worktree of f5a4557 on PYTHONPATH):
 import sys
 from pathlib import Path
 
-import numpy as np
-
 HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE.parent / "no-closer"))
 from final_trace import TRACE  # noqa: E402
