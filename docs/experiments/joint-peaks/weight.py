@@ -12,12 +12,8 @@ from pathlib import Path
 
 HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE.parent / "no-closer"))
-from final_trace import TRACE  # noqa: E402
-
-from sm2ith_drake.experiments.campaign import ReadRows  # noqa: E402
-from sm2ith_drake.experiments.runs import LoadRunScenario, SpecFromRow  # noqa: E402
-from sm2ith_drake.experiments.studies import STUDIES  # noqa: E402
-from sm2ith_drake.run.metrics import RobotClosingContacts  # noqa: E402
+sys.path.insert(0, str(HERE))
+from seed18 import Measure  # noqa: E402
 
 CSV = HERE / "peaks-nc05-rb" / "doorway.csv"
 RUNS = (
@@ -26,15 +22,14 @@ RUNS = (
 )
 
 for run_id in RUNS:
-    row = next(r for r in ReadRows(CSV) if r["run_id"] == run_id)
     for weight in (1e5, 1e4, 1e3):
-        scenario = LoadRunScenario(SpecFromRow(STUDIES[row["study"]], row))
-        scenario.safety.no_closer_slack_weight = weight
-        robot, t, x, P, _, dist, gap = TRACE.Resimulate(scenario)
-        closing = RobotClosingContacts(robot, x, P, gap, dist)
+
+        def Configure(scenario, weight=weight):
+            scenario.safety.no_closer_slack_weight = weight
+
+        gap, closing = Measure(CSV, run_id, Configure)
         print(
-            f"{run_id} weight {weight:.0e}: least gap "
-            f"{1e3 * float(gap.min()):.1f} mm, robot closing in "
-            f"{1e3 * float(closing.sum()):.1f} mm",
+            f"{run_id} weight {weight:.0e}: least gap {gap:.1f} mm, "
+            f"robot closing in {closing:.1f} mm",
             flush=True,
         )
