@@ -12,14 +12,15 @@ from sm2ith_drake.scenario_loader import LoadScenarioAndRobot
 WRIST = 5  # joint_wrist_yaw: q index 5, ν index 4 (Stretch 3)
 
 
-def _Controller(between_knots: bool):
+def _Controller(between_knots: bool, solver: str = "rti"):
     """A Stretch 3 whose wrist yaw is limited to ±0.2 rad (as in the
     doorway) and pulled hard toward 1 rad, past its upper limit."""
     text = (
         "{robot: {joint_limits: {joint_wrist_yaw: [-0.2, 0.2]}}, "
         "tasks: [{kind: joint_posture, target: [0.3, 0.2, 1.0, 0.0], "
         "weight: [1, 1, 100000, 1]}], "
-        f"controller: {{joint_limits_between_knots: {str(between_knots).lower()}}}}}"
+        f"controller: {{joint_limits_between_knots: {str(between_knots).lower()}, "
+        f"solver: {solver}}}}}"
     )
     scenario, robot = LoadScenarioAndRobot(
         filename=GetDiagramsDir() / "reach.scenarios.yaml",
@@ -104,9 +105,21 @@ def test_a_joint_that_cannot_stop_before_its_limit_is_braked():
     q[WRIST] = 0.194
     nu = np.zeros(robot.num_velocities)
     nu[w] = 0.5
-    braking = BrakingTrajectory(robot, q, nu, dt, 10, np.array([WRIST]))
-    assert braking[0][-1, 0] > 0.2  # braking passes the limit, then stops
-    assert braking[1][-1, 0] == 0.0
+    braking = BrakingTrajectory(robot, q, nu, dt, 10)
+    j = WRIST - NUM_BASE_POSITIONS
+    assert braking[0][-1, j] > 0.2  # braking passes the limit, then stops
+    assert braking[1][-1, j] == 0.0
+
+
+def test_the_nonlinear_path_reads_the_widened_rows_each_solve():
+    """IPOPT's program is built once; the rows' bounds widen with the
+    state, so the solver must take them at each solve (NlpStageSolver):
+    the wrist too fast to stop is braked there too, not infeasible."""
+    controller, robot, _ = _Controller(True, solver="ipopt")
+    state = _Step(controller, robot, 0.194, 0.5)
+    assert state.record.mode == "solved", state.record.status
+    w = ArmVelocityIndex(robot, WRIST)
+    assert state.command_u[w] == pytest.approx(robot.nudot_lower[w], rel=1e-4)
 
 
 def test_group_rows_and_bounds():
@@ -133,9 +146,11 @@ def test_group_rows_and_bounds():
     q0 = np.array(robot.default_q, dtype=float)
     nu0 = np.zeros(robot.num_velocities)
     q0[WRIST], nu0[ArmVelocityIndex(robot, WRIST)] = 0.199, 1.0
-    group.SetState(q0, nu0)
+    group.SetBraking(BrakingTrajectory(robot, q0, nu0, dt, layout.N))
     assert np.max(group.upper) > 0.2
-    group.SetState(q0, np.zeros(robot.num_velocities))
+    group.SetBraking(
+        BrakingTrajectory(robot, q0, np.zeros(robot.num_velocities), dt, layout.N)
+    )
     np.testing.assert_array_equal(group.upper, np.tile(robot.q_upper[arm_q], 10))
     np.testing.assert_array_equal(group.lower, np.tile(robot.q_lower[arm_q], 10))
 

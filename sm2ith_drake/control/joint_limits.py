@@ -28,10 +28,12 @@ from sm2ith_drake.control.groups import ConstraintGroup, VariableLayout
 from sm2ith_drake.robots.planar_base import NUM_BASE_POSITIONS, ArmVelocityIndex
 
 
-def BrakingTrajectory(robot, q0, nu0, time_step: float, horizon: int, arm_q):
-    """The arm joints ``arm_q`` braking as hard as their acceleration limits
-    allow from (q0, ν0): q (N+1, J) and ν (N+1, J) at the knots, or None
-    where no joint moves (or the state is not finite)."""
+def BrakingTrajectory(robot, q0, nu0, time_step: float, horizon: int):
+    """The arm joints braking as hard as their acceleration limits allow
+    from (q0, ν0): q (N+1, J) and ν (N+1, J) at the knots (J: every arm
+    joint), or None where no joint moves (or the state is not finite).
+    Computed once a step for WidenForBraking and JointPeakGroup."""
+    arm_q = np.arange(NUM_BASE_POSITIONS, robot.num_positions)
     arm_nu = ArmVelocityIndex(robot, arm_q)
     v = np.asarray(nu0, dtype=float)[arm_nu].copy()
     if not np.all(np.isfinite(v)) or not np.any(v):
@@ -48,25 +50,24 @@ def BrakingTrajectory(robot, q0, nu0, time_step: float, horizon: int, arm_q):
     return np.array(qs), np.array(vs)
 
 
-def WidenForBraking(robot, layout: VariableLayout, time_step, lower, upper, q0, nu0):
+def WidenForBraking(layout: VariableLayout, braking, lower, upper):
     """Keeps the problem feasible when an arm joint moves toward a limit
-    too fast to stop before it: at every knot where full braking would
-    still pass the limit, the bound (``lower``, ``upper``: the variable
-    bounds, changed in place) becomes the braking trajectory's position,
-    held for the rest of the horizon once braking has stopped the joint
-    (the plan then brakes that joint; the robot itself stops at the limit).
-    Without this the QP is infeasible and the step falls back, although
-    braking is exactly what the plan should do."""
-    arm_q = np.arange(NUM_BASE_POSITIONS, robot.num_positions)
-    braking = BrakingTrajectory(robot, q0, nu0, time_step, layout.N, arm_q)
+    too fast to stop before it: at every knot where full braking (the
+    BrakingTrajectory ``braking``) would still pass the limit, the bound
+    (``lower``, ``upper``: the variable bounds, changed in place) becomes
+    the braking trajectory's position, held for the rest of the horizon
+    once braking has stopped the joint (the plan then brakes that joint;
+    the robot itself stops at the limit). Without this the QP is infeasible
+    and the step falls back, although braking is exactly what the plan
+    should do."""
     if braking is None:
         return
     q = braking[0]
-    for k in range(1, layout.N + 1):
-        cols = np.asarray(layout.q[k])[arm_q]
-        # Past the limit the joint may stay where braking stopped it.
-        upper[cols] = np.maximum(upper[cols], q[k])
-        lower[cols] = np.minimum(lower[cols], q[k])
+    arm_q = np.arange(NUM_BASE_POSITIONS, layout.n)
+    cols = np.asarray(layout.q)[1:, arm_q]  # (N, J)
+    # Past the limit the joint may stay where braking stopped it.
+    upper[cols] = np.maximum(upper[cols], q[1:])
+    lower[cols] = np.minimum(lower[cols], q[1:])
 
 
 class JointPeakGroup(ConstraintGroup):
@@ -74,7 +75,7 @@ class JointPeakGroup(ConstraintGroup):
     finite limit, k = 1..N (rows k-major, then joint; module doc).
 
     Its bounds, :attr:`lower` and :attr:`upper`, are the arrays the program
-    hands to the stage solvers; :meth:`SetState` widens them in place each
+    hands to the stage solvers; :meth:`SetBraking` widens them in place each
     step as WidenForBraking widens the variable bounds, to the braking
     trajectory's own values where it passes a limit (a pure function of the
     measured state: nothing lasts between steps)."""
@@ -85,11 +86,11 @@ class JointPeakGroup(ConstraintGroup):
     # and checked at the solution.
 
     def __init__(self, robot, layout: VariableLayout, time_step: float):
-        self._robot = robot
         self._dt = time_step
-        self._N = N = layout.N
+        N = layout.N
         arm_q = np.arange(NUM_BASE_POSITIONS, robot.num_positions)
         limited = np.isfinite(robot.q_lower[arm_q]) | np.isfinite(robot.q_upper[arm_q])
+        self._limited = np.nonzero(limited)[0]  # of the arm's joints
         self._arm_q = arm_q[limited]
         self._arm_nu = ArmVelocityIndex(robot, self._arm_q)
         J = self._arm_q.size
@@ -116,16 +117,14 @@ class JointPeakGroup(ConstraintGroup):
         far = (g - self.lower > distance) & (self.upper - g > distance)
         return far if np.any(far) else None
 
-    def SetState(self, q0, nu0) -> None:
-        """The bounds for the measured state (q0, ν0) (class doc)."""
+    def SetBraking(self, braking) -> None:
+        """The bounds for the measured state, given its BrakingTrajectory
+        ``braking`` (class doc)."""
         self.lower[:] = self._base_lower
         self.upper[:] = self._base_upper
-        braking = BrakingTrajectory(
-            self._robot, q0, nu0, self._dt, self._N, self._arm_q
-        )
         if braking is None:
             return
-        q, v = braking
-        peak = (q[1:] + 0.5 * self._dt * v[1:]).ravel()
+        q, v = (b[1:, self._limited] for b in braking)
+        peak = (q + 0.5 * self._dt * v).ravel()
         np.maximum(self.upper, peak, out=self.upper)
         np.minimum(self.lower, peak, out=self.lower)

@@ -46,11 +46,18 @@ class NlpStageSolver:
         )
         self._targets = {}
         self._cache = {"key": None, "point": None}
-        # Shared constraints (eq. stmpc_sys_consts).
-        for group, lo, hi in self._problem.shared_constraints:
-            prog.AddConstraint(
-                self._Wrap(group), lo, hi, self._z, description=group.name
+        # Shared constraints (eq. stmpc_sys_consts); their bounds are read
+        # again at each solve (the joint rows' widen with the state).
+        self._shared = [
+            (
+                prog.AddConstraint(
+                    self._Wrap(group), lo, hi, self._z, description=group.name
+                ),
+                lo,
+                hi,
             )
+            for group, lo, hi in self._problem.shared_constraints
+        ]
         # Lexicographic constraints (eq. stmpc_lex_constr), bounds set per solve.
         self._lex = {}
         for group in self._problem.lexicographic_groups:
@@ -126,6 +133,8 @@ class NlpStageSolver:
         self._targets.update(point.targets)
         self._cache["key"] = None
         self._bounds.evaluator().set_bounds(lower, upper)
+        for binding, lo, hi in self._shared:
+            binding.evaluator().set_bounds(lo, hi)
         for name, binding in self._lex.items():
             binding.evaluator().set_bounds(*LexicographicBand(lex_bounds[name]))
         result = self._solver.Solve(self._prog, point.z, self._options)

@@ -37,7 +37,11 @@ from sm2ith_drake.control.groups import (
     LinearizationPoint,
     VariableLayout,
 )
-from sm2ith_drake.control.joint_limits import JointPeakGroup, WidenForBraking
+from sm2ith_drake.control.joint_limits import (
+    BrakingTrajectory,
+    JointPeakGroup,
+    WidenForBraking,
+)
 from sm2ith_drake.control.profiling import PROFILER
 from sm2ith_drake.control.robot_groups import (
     DynamicsGroup,
@@ -247,10 +251,11 @@ class MpcProgram:
         # The measured ν may sit marginally outside its limits; pinning it is
         # still consistent because only ν_1.. are bounded by the limits.
         lower[L.nu[0]] = upper[L.nu[0]] = nu0
+        braking = BrakingTrajectory(self.robot, q0, nu0, self.time_step, L.N)
         if self.braking_consistent_bounds:
-            WidenForBraking(self.robot, L, self.time_step, lower, upper, q0, nu0)
+            WidenForBraking(L, braking, lower, upper)
         if self.joint_peaks is not None:
-            self.joint_peaks.SetState(q0, nu0)
+            self.joint_peaks.SetBraking(braking)
         if self.predictor is not None:
             self.predictor.ApplyBounds(lower, upper)
             if self.cbf is not None and self.cbf.num_guard:
