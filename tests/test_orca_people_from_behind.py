@@ -9,8 +9,8 @@ These tests show it with RVO2 itself (the pyrvo bindings) and with the
 studies' own ORCA people (``StepCrowd``), with no controller in the loop:
 the robot is a disc driven along a fixed speed profile. They are the
 reason the issue's bar of 0 contacts with ORCA people cannot be met by
-any robot that slows down with a person close behind, whichever its
-controller."""
+a robot that must slow down with a person close behind and has no room
+to step aside (the Stretch 3 in a 1 m door), whichever its controller."""
 
 import numpy as np
 import pytest
