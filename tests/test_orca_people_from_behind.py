@@ -117,8 +117,8 @@ def test_the_robot_braking_with_an_orca_person_behind_is_a_contact(
     # caught up: the person, who left half of the avoidance to the robot,
     # walks into it, even at a gentle 0.25 m/s². RVO2 (0.1 s steps, the
     # robot's velocity of the step before) by 7-23 mm; the studies' people
-    # (0.05 s steps, the velocity at the step's start) by 0.5-2 mm, the
-    # depth of the sampled contacts from behind in the doorway.
+    # (0.05 s steps, the velocity at the step's start) by 0.5-2 mm, within
+    # the depths of the doorway's contacts from behind (0.6-14 mm).
     braking = people(brake_at=8.0, deceleration=deceleration)
     assert np.min(people()) > 0.0
     assert np.min(braking) < 0.0
