@@ -209,6 +209,11 @@ class SafetyConfig:
     # the safe variant).
     no_closer_gap: float = 0.0
     no_closer_slack_weight: float = 1e5
+    # With no_closer_gap: 0, every person within the gap is held; > 0, only
+    # those measured slower than no_closer_speed (m/s), so a person walking
+    # past or away does not hold the robot where they were (nineteenth
+    # session; docs/experiments/no-closer-b55d319).
+    no_closer_speed: float = 0.0
     # "safe": the shipped safety mechanism on top of the paper's DT-CBF (the
     # guards above); "paper": the paper's formulation, the DT-CBF against the
     # prediction only (guard_steps and static_guard_steps ignored). Studies

@@ -155,6 +155,8 @@ BAD_INPUTS = [
      ["safety.human_radius"]),
     ("negative_no_closer_gap", "stretch3_reach", "{safety: {no_closer_gap: -0.05}}",
      ["safety.no_closer_gap"]),
+    ("negative_no_closer_speed", "stretch3_reach", "{safety: {no_closer_speed: -0.1}}",
+     ["safety.no_closer_speed"]),
     ("zero_no_closer_slack_weight", "stretch3_reach",
      "{safety: {no_closer_slack_weight: 0}}",
      ["safety.no_closer_slack_weight", "> 0"]),

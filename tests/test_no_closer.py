@@ -33,10 +33,13 @@ def _PersonAhead(robot, q0, gap, radius):
     return p
 
 
-def _Plan(scenario, robot, person, *, predictor="orca_kkt", **safety):
+def _Plan(
+    scenario, robot, person, *, predictor="orca_kkt", velocity=(0.0, 0.0), **safety
+):
     """The first step's plan, the robot standing, its base goal beyond a
-    person standing still at ``person``; h of the robot against the person
-    standing there at every knot, and the program's DT-CBF group."""
+    person at ``person`` measured at ``velocity`` (standing still by
+    default); h of the robot against where the person is at every knot, and
+    the program's DT-CBF group."""
     controller = MpcController(
         robot,
         scenario.tasks,
@@ -49,7 +52,7 @@ def _Plan(scenario, robot, person, *, predictor="orca_kkt", **safety):
         if name.startswith("base"):
             targets[name][:2] = person + [3.0, 0.0]
     q0 = np.array(robot.default_q, dtype=float)
-    estimate = HumanEstimate(ids=[1], positions=[person], velocities=[[0.0, 0.0]])
+    estimate = HumanEstimate(ids=[1], positions=[person], velocities=[list(velocity)])
     state = FirstStep(controller, estimate, q0, np.zeros(robot.num_velocities), targets)
     assert state.record.mode == "solved"
     d = HumanDistances(robot, state.plan.q, person[None, None])[:, 0]
@@ -88,3 +91,25 @@ def test_people_beyond_the_gap_and_the_paper_variant_are_untouched():
     np.testing.assert_allclose(on, off, atol=1e-4)  # the solver's tolerance
     _, cbf = _Plan(scenario, robot, person, no_closer_gap=0.1, mode="paper")
     assert cbf.near_rows.size == 0
+
+
+def test_no_closer_speed_holds_only_people_standing():
+    """With safety.no_closer_speed, only people measured slower than it are
+    held: a person standing 15 cm ahead is held as without it (their gap
+    does not fall over the stopping time), and one walking away ahead at
+    0.6 m/s is not (the plan is the one without the option, while with
+    every near person held it differs)."""
+    scenario, robot = _Setup()
+    q0 = np.array(robot.default_q, dtype=float)
+    person = _PersonAhead(robot, q0, 0.15, scenario.safety.human_radius)
+    still, _ = _Plan(scenario, robot, person, no_closer_gap=0.2, no_closer_speed=0.2)
+    assert np.all(np.diff(still[:7]) >= -2e-3), still[:7]
+    away = (0.6, 0.0)
+    off, _ = _Plan(scenario, robot, person, velocity=away, no_closer_gap=0.0)
+    fast, cbf = _Plan(
+        scenario, robot, person, velocity=away, no_closer_gap=0.2, no_closer_speed=0.2
+    )
+    every, _ = _Plan(scenario, robot, person, velocity=away, no_closer_gap=0.2)
+    assert cbf.near_rows.size > 0  # the rows are there, and hold trivially
+    np.testing.assert_allclose(fast, off, atol=1e-4)  # the solver's tolerance
+    assert np.abs(every - off).max() > 5e-3, np.abs(every - off).max()

@@ -111,6 +111,7 @@ class DtCbfGroup(ConstraintGroup):
         guard_inside="exit",
         near_steps=0,
         near_gap=0.0,
+        near_speed=0.0,
     ):
         if inside not in ("decay", "exit"):
             raise ValueError(f"inside must be 'decay' or 'exit', not {inside!r}")
@@ -140,6 +141,9 @@ class DtCbfGroup(ConstraintGroup):
         self.static_guard_steps = int(min(max(static_guard_steps, 0), N))
         E = self.num_extra = int(max(extra_humans, 0))
         self.near_gap = float(near_gap)
+        # SafetyConfig.no_closer_speed: 0, every near person; > 0, only
+        # those measured slower than this (m/s).
+        self.near_speed = float(near_speed)
         near_steps = int(min(max(near_steps, 0), N)) if self.near_gap > 0 else 0
         # Guard row blocks, in row order: (steps, people, which guard).
         self._guards = [
@@ -154,6 +158,7 @@ class DtCbfGroup(ConstraintGroup):
         self.guard_p0 = np.zeros((H, 2))
         self.guard_v0 = np.zeros((H, 2))
         self.static_p0 = np.zeros((H, 2))
+        self.static_speed = np.zeros(H)
         self.extra_p0 = _OutOfReach(np.zeros((E, 2)), np.zeros(E, dtype=bool))
         self.extra_v0 = np.zeros((E, 2))
         self.guard_dt = 0.0
@@ -235,6 +240,7 @@ class DtCbfGroup(ConstraintGroup):
         p = np.array(positions, dtype=float).reshape(-1, 2)
         v = np.array(velocities, dtype=float).reshape(-1, 2)
         self.static_p0 = _OutOfReach(p, active)
+        self.static_speed = np.linalg.norm(v, axis=1)  # measured, before the guard's
         if guarded is not None:
             v[~np.asarray(guarded, dtype=bool)] = 0.0
         self.guard_p0, self.guard_v0 = _OutOfReach(p, guarded), v
@@ -317,7 +323,8 @@ class DtCbfGroup(ConstraintGroup):
         """The rows h_{k+1} − h_k ≥ 0 of the nearest capsule against each
         person standing where measured (``static_p0``), k < G; a person not
         within ``near_gap`` of the robot at knot 0 (the measured
-        configuration) has rows that hold trivially."""
+        configuration), or with ``near_speed`` > 0 measured at least that
+        fast, has rows that hold trivially."""
         p0 = self.static_p0
         g, vals, h = self._GuardBlock(
             point,
@@ -330,7 +337,10 @@ class DtCbfGroup(ConstraintGroup):
             with_h=True,
         )
         gap = h[0, :, 0] + self._human_margin  # the nearest body's, at knot 0
-        far = np.broadcast_to(gap >= self.near_gap, (G, len(p0)))
+        far = gap >= self.near_gap
+        if self.near_speed > 0:
+            far = far | (self.static_speed >= self.near_speed)
+        far = np.broadcast_to(far, (G, len(p0)))
         g = np.where(far.ravel(), _FAR_ROW, g)
         vals = vals.reshape(G, len(p0), -1)
         vals[far] = 0.0

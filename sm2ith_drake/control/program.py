@@ -185,6 +185,7 @@ class MpcProgram:
                 if predictor is not None and safety.mode == "safe"
                 else 0,
                 near_gap=safety.no_closer_gap,
+                near_speed=safety.no_closer_speed,
             )
             nr = self.cbf.num_rows
             self.extra_constraints.append((self.cbf, np.zeros(nr), np.full(nr, np.inf)))
