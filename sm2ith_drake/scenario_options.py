@@ -212,7 +212,10 @@ class SafetyConfig:
     # With no_closer_gap: 0, every person within the gap is held; > 0, only
     # those measured slower than no_closer_speed (m/s), so a person walking
     # past or away does not hold the robot where they were (nineteenth
-    # session; docs/experiments/no-closer-b55d319).
+    # session). Measured with 0.2 on the Stretch 3's doorway (SM²ITH, ORCA
+    # people, 120 runs): as the gap alone, fewer runs closing in but not
+    # the arrivals or freezing time back; off (docs/experiments/
+    # no-closer-b55d319).
     no_closer_speed: float = 0.0
     # "safe": the shipped safety mechanism on top of the paper's DT-CBF (the
     # guards above); "paper": the paper's formulation, the DT-CBF against the
