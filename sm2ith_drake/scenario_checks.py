@@ -1,12 +1,11 @@
 """Checks of the scenario values that the typed schema cannot express.
 
-:func:`ValidateScenario` needs only the scenario: every number finite, vector
-lengths that do not depend on the robot, positive durations, periods, radii
-and speeds. :func:`ValidateScenarioForRobot` adds what needs the robot: the
-lengths of ``initial_q``, ``initial_nu`` and joint-posture targets, the start
-within the joint limits, and warnings (not errors) for people who start
-inside the robot or inside a wall. Every error is a :class:`ScenarioError`
-with a one-line message that names the field.
+:func:`ValidateScenario` needs only the scenario: every number finite, vector lengths
+that do not depend on the robot, positive durations, periods, radii and speeds.
+:func:`ValidateScenarioForRobot` adds what needs the robot: the lengths of
+``initial_q``, ``initial_nu`` and joint-posture targets, the start within the joint
+limits, and warnings (not errors) for people who start inside the robot or inside a
+wall. Every error is a :class:`ScenarioError` whose one-line message names the field.
 """
 
 from __future__ import annotations
