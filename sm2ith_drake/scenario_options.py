@@ -209,9 +209,9 @@ class SafetyConfig:
     # the safe variant).
     no_closer_gap: float = 0.0
     no_closer_slack_weight: float = 1e5
-    # With no_closer_gap: 0, every person within the gap is held; > 0, only
-    # those measured slower than no_closer_speed (m/s), so a person walking
-    # past or away does not hold the robot where they were (nineteenth
+    # no_closer_speed (m/s) 0: every person within no_closer_gap is held;
+    # > 0: only those measured slower than it, so a person walking past or
+    # away does not hold the robot where they were (nineteenth
     # session). Measured with 0.2 on the Stretch 3's doorway (SM²ITH, ORCA
     # people, 120 runs): as the gap alone, fewer runs closing in but not
     # the arrivals or freezing time back; off (docs/experiments/
