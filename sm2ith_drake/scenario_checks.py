@@ -297,17 +297,18 @@ def _ValidatePeople(scenario: Scenario) -> None:
     for name in (
         "turn_speed_floor guard_steps static_guard_steps guard_deviation guard_hold "
         "guard_gap backup_margin human_margin obstacle_margin no_closer_gap "
-        "no_closer_speed"
+        "no_closer_speed still_slack_weight approach_speed"
     ).split():
         _NonNegative(getattr(s, name), f"safety.{name}")
     for name in ("human_slack_weight", "no_closer_slack_weight", "human_radius"):
         _Positive(getattr(s, name), f"safety.{name}")
-    if not s.obstacle_slack_weight > s.human_slack_weight:
-        raise ScenarioError(
-            "safety.obstacle_slack_weight must exceed safety.human_slack_weight "
-            f"(a wall outranks a person's margin), got {s.obstacle_slack_weight} "
-            f"against {s.human_slack_weight}"
-        )
+    for name in ("human_slack_weight", "still_slack_weight"):
+        if not s.obstacle_slack_weight > getattr(s, name):
+            raise ScenarioError(
+                f"safety.obstacle_slack_weight must exceed safety.{name} (a wall "
+                f"outranks a person's margin), got {s.obstacle_slack_weight} "
+                f"against {getattr(s, name)}"
+            )
     pc = scenario.perception
     _OneOf(pc.estimator, ("kalman", "truth"), "perception.estimator")
     _NonNegative(pc.noise, "perception.noise")
@@ -353,8 +354,7 @@ def ValidateScenario(scenario: Scenario) -> None:
 def ValidateScenarioForRobot(scenario: Scenario, robot, *, warn=None) -> None:
     """The checks that need the robot (a MobileManipulator): vector lengths,
     the start within the joint limits; people who start inside the robot's
-    capsules or inside a wall are reported to ``warn`` (default: a line on
-    stderr) with the overlap, not refused.
+    capsules or a wall are reported to ``warn`` (default: a line on stderr).
 
     Raises:
         ScenarioError: naming the field.

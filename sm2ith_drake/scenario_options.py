@@ -217,6 +217,16 @@ class SafetyConfig:
     # the arrivals or freezing time back; off (docs/experiments/
     # no-closer-b55d319).
     no_closer_speed: float = 0.0
+    # Optional (0: off, the default; `safe` only, every method alike): the
+    # exact-penalty weight (per metre) of the barrier slacks of a tracked
+    # person not walking toward the robot (measured velocity toward the
+    # base below approach_speed, m/s), in place of human_slack_weight. In a
+    # jam between two people, where every barrier cannot hold at once, the
+    # plan then gives up the margin of the one walking into the robot
+    # rather than edge into one who stands (traced in the doorway,
+    # docs/experiments/final-b55d319/contact-kinds). Below a wall's.
+    still_slack_weight: float = 0.0
+    approach_speed: float = 0.05
     # "safe": the shipped safety mechanism on top of the paper's DT-CBF (the
     # guards above); "paper": the paper's formulation, the DT-CBF against the
     # prediction only (guard_steps and static_guard_steps ignored). Studies

@@ -35,11 +35,8 @@ def ObstacleSegments(obstacles) -> np.ndarray:
     segments = []
     for o in obstacles:
         v = np.asarray(o.vertices, dtype=float)
-        if len(v) == 2:
-            segments.append(v)
-        else:
-            for i in range(len(v)):
-                segments.append(np.array([v[i], v[(i + 1) % len(v)]]))
+        edges = [v] if len(v) == 2 else np.stack([v, np.roll(v, -1, 0)], axis=1)
+        segments.extend(edges)
     return np.array(segments).reshape(-1, 2, 2)
 
 
@@ -141,8 +138,7 @@ class DtCbfGroup(ConstraintGroup):
         self.static_guard_steps = int(min(max(static_guard_steps, 0), N))
         E = self.num_extra = int(max(extra_humans, 0))
         self.near_gap = float(near_gap)
-        # SafetyConfig.no_closer_speed: 0, every near person; > 0, only
-        # those measured slower than this (m/s).
+        # SafetyConfig.no_closer_speed (m/s): > 0, only slower people near.
         self.near_speed = float(near_speed)
         near_steps = int(min(max(near_steps, 0), N)) if self.near_gap > 0 else 0
         # Guard row blocks, in row order: (steps, people, which guard).
@@ -189,6 +185,7 @@ class DtCbfGroup(ConstraintGroup):
                 row_blocks.append(np.array([row + r]))
                 col_blocks.append(np.concatenate([layout.q[k], layout.q[k + 1]]))
             row += steps * per_step
+        self.person_rows = self._PersonRows()
         # One slack per row under an exact penalty (MpcProgram): zero
         # whenever the hard constraints can be met; when they cannot (a person
         # walking into the robot faster than it can get away), the robot does
@@ -206,6 +203,17 @@ class DtCbfGroup(ConstraintGroup):
             self.KeepStructuralNonzeros(self._StructuralMask(robot.capsule_joint_masks))
         else:
             self.rows = self.cols = np.zeros(0, dtype=int)
+
+    def _PersonRows(self):
+        """(H, ·) each slot's horizon and moving and static guard rows."""
+        N, H, C, R = self._layout.N, self._H, self._C, self.rows_per_step
+        slot = np.arange(H)[:, None, None] * C + np.arange(C)[None, None, :]
+        rows, row = [slot + np.arange(N)[None, :, None] * R], N * R
+        for steps, per_step, which in self._guards:
+            if which in ("moving", "static"):
+                rows.append(row + slot + np.arange(steps)[None, :, None] * H * C)
+            row += steps * per_step
+        return np.concatenate([r.reshape(H, r.shape[1] * C) for r in rows], axis=1)
 
     def _StructuralMask(self, capsule_masks):
         """The pattern entries that can be nonzero: a capsule's barrier moves

@@ -223,6 +223,15 @@ class MpcProgram:
             safety if safety.turn_monitoring and safety.mode == "safe" else None
         )
         self._turn_bounds = None  # (the state's bytes, TurnBounds of it)
+        # SafetyConfig.still_slack_weight, `safe` only (_WeighStillPeople).
+        self.still_slack = (
+            safety
+            if self.cbf is not None
+            and predictor is not None
+            and safety.still_slack_weight > 0
+            and safety.mode == "safe"
+            else None
+        )
         # Joint bounds that follow full braking where a joint cannot stop
         # before its limit (see WidenForBraking); False only to show that
         # the QP is infeasible without them.
@@ -276,7 +285,26 @@ class MpcProgram:
                 )
             if self.turn_monitoring is not None and turn:
                 self._LimitTurn(lower, upper, q0, nu0)
+            if self.still_slack is not None:
+                self._WeighStillPeople(q0)
         return lower, upper
+
+    def _WeighStillPeople(self, q0):
+        """SafetyConfig.still_slack_weight: each slot's barrier slacks weigh
+        human_slack_weight if the person walks toward the base faster than
+        approach_speed (measured), still_slack_weight otherwise (a pure
+        function of the measured state, set before each solve)."""
+        safety, predictor = self.still_slack, self.predictor
+        to_base = np.asarray(q0[:2], dtype=float) - predictor.p0
+        distance = np.maximum(np.linalg.norm(to_base, axis=1), 1e-9)
+        toward = np.einsum("hi,hi->h", predictor.v0, to_base) / distance
+        weight = np.where(
+            toward > safety.approach_speed,
+            safety.human_slack_weight,
+            safety.still_slack_weight,
+        )
+        slack = self.cbf.slack[self.cbf.person_rows]
+        self.linear_cost[slack] = np.broadcast_to(weight[:, None], slack.shape)
 
     def TurnBounds(self, q0, nu0):
         """The yaw rate's bounds of SafetyConfig.turn_monitoring at the
