@@ -126,7 +126,10 @@ def test_a_squeezed_plan_gives_up_the_walking_persons_margin():
     scenario, robot, _ = _Controller()
     q0 = np.array(robot.default_q, dtype=float)
     r = scenario.safety.human_radius
-    people = [_PersonAt(robot, q0, (1, 0), 0.05, r), _PersonAt(robot, q0, (-1, 0), 0.05, r)]
+    people = [
+        _PersonAt(robot, q0, (1, 0), 0.05, r),
+        _PersonAt(robot, q0, (-1, 0), 0.05, r),
+    ]
     velocities = [(0.0, 0.0), (0.6, 0.0)]
     results = {}
     for weight in (0.0, 1e5):
