@@ -225,6 +225,9 @@ class SafetyConfig:
     # plan then gives up the margin of the one walking into the robot
     # rather than edge into one who stands (traced in the doorway,
     # docs/experiments/final-b55d319/contact-kinds). Below a wall's.
+    # Measured with 1e5 and 5e5 (Stretch 3 doorway, SM²ITH, ORCA people,
+    # 120 paired runs): the robot closes in as often, at 5e5 farther; off
+    # (docs/experiments/still-slack-b55d319).
     still_slack_weight: float = 0.0
     approach_speed: float = 0.05
     # "safe": the shipped safety mechanism on top of the paper's DT-CBF (the
