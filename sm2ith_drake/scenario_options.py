@@ -146,6 +146,10 @@ class SafetyConfig:
     # (docs/experiments/turn-monitoring/seeds-30-restore): runs with
     # contact 86 against 100, the robot closing in during a contact 44
     # against 56, arrivals 370 against 372, 1 failed step against none.
+    # A floor of 0.2 measured on the final controller: fewer contacts in
+    # the Stretch 3's doorway on the final re-run's seeds, not on 30 new
+    # ones, new ones on the Ridgeback–UR10 (docs/experiments/
+    # turn-floor-b55d319); 0.4 kept.
     turn_monitoring: bool = True
     turn_speed_floor: float = 0.4
     # Hold the guard over at least the base's stopping time (not in the
