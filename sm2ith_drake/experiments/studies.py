@@ -116,6 +116,16 @@ _CVMM = Method("CVMM", "{prediction: {predictor: cvmm}}")
 _REACT = Method("React", "{prediction: {predictor: react}}")
 _ROBOTS = (("ridgeback_ur10", "Ridgeback–UR10"), ("stretch3", "Stretch 3"))
 
+
+def _RobotPanels(*panels):
+    """The same (title, metric, unit) panels for each robot, one row each."""
+    return tuple(
+        Panel(f"{label}: {title}", metric, unit, robot)
+        for robot, label in _ROBOTS
+        for title, metric, unit in panels
+    )
+
+
 # The doorway's people (experiments/people.py), per robot: the geometry of
 # diagrams/doorway.scenarios.yaml.
 DOORWAY_PEOPLE = {
@@ -222,15 +232,11 @@ STUDIES = {
             )
         ),
         methods=(Method("SM2ITH"), _CVMM, _REACT),
-        panels=tuple(
-            Panel(f"{label}: {title}", metric, unit, robot)
-            for robot, label in _ROBOTS
-            for title, metric, unit in (
-                ("navigation time", "navigation_time", "s"),
-                ("avg. base deviation", "base_path_deviation", "m"),
-                ("time in intimate space (base)", "intimate_space_time_base", "s"),
-                ("avg. human distance", "mean_human_distance", "m"),
-            )
+        panels=_RobotPanels(
+            ("navigation time", "navigation_time", "s"),
+            ("avg. base deviation", "base_path_deviation", "m"),
+            ("time in intimate space (base)", "intimate_space_time_base", "s"),
+            ("avg. human distance", "mean_human_distance", "m"),
         ),
         # 2 × 120 runs ≈ 33 min with --jobs 2 (the budget is 60 min); add a
         # people model with --people (≈ 33 min more each).
@@ -363,15 +369,11 @@ STUDIES = {
             for h in DOORWAY_CROWDS
         ),
         methods=(Method("SM2ITH"), _CVMM, _REACT),
-        panels=tuple(
-            Panel(f"{label}: {title}", metric, unit, robot)
-            for robot, label in _ROBOTS
-            for title, metric, unit in (
-                ("time to goal", "time_to_goal", "s"),
-                ("freezing time", "freezing_time", "s"),
-                ("time in intimate space (base)", "intimate_space_time_base", "s"),
-                ("closest approach (gap)", "min_human_gap", "m"),
-            )
+        panels=_RobotPanels(
+            ("time to goal", "time_to_goal", "s"),
+            ("freezing time", "freezing_time", "s"),
+            ("time in intimate space (base)", "intimate_space_time_base", "s"),
+            ("closest approach (gap)", "min_human_gap", "m"),
         ),
         # 2 × 240 runs ≈ 70 min with --jobs 2; add a people model with
         # --people.
