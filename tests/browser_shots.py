@@ -1,7 +1,9 @@
 """Screenshots of HTML replays with Debian's headless chromium (for the tests
 that check what a person would see)."""
 
+import os
 import shutil
+import signal
 import subprocess
 
 import matplotlib.image
@@ -11,7 +13,23 @@ CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 
 def Screenshot(html, png, user_data_dir):
     """The page ``html`` rendered at 800×600, as an RGB array."""
-    command = [
+    # Headless chromium now and then hangs on this loaded machine (about one
+    # screenshot in five, whatever the page): up to three attempts. A hung
+    # chromium's renderer and GPU children outlive a kill of the browser
+    # process alone and keep its profile locked, so each attempt runs in its
+    # own process group, killed whole, with a profile of its own.
+    for attempt in range(3):
+        try:
+            _Run(_Command(html, png, f"{user_data_dir}-{attempt}"), timeout=60)
+            break
+        except subprocess.TimeoutExpired:
+            if attempt == 2:
+                raise
+    return matplotlib.image.imread(str(png))[..., :3]
+
+
+def _Command(html, png, user_data_dir):
+    return [
         CHROMIUM,
         "--headless",
         "--no-sandbox",
@@ -26,13 +44,22 @@ def Screenshot(html, png, user_data_dir):
         f"--screenshot={png}",
         f"file://{html}",
     ]
-    # Headless chromium now and then hangs on this loaded machine (about one
-    # screenshot in five, whatever the page): up to three attempts.
-    for attempt in range(3):
-        try:
-            subprocess.run(command, capture_output=True, timeout=60, check=True)
-            break
-        except subprocess.TimeoutExpired:
-            if attempt == 2:
-                raise
-    return matplotlib.image.imread(str(png))[..., :3]
+
+
+def _Run(command, timeout):
+    """Runs ``command``; on timeout kills its whole process group and raises
+    subprocess.TimeoutExpired; a non-zero exit raises CalledProcessError."""
+    process = subprocess.Popen(
+        command,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        start_new_session=True,
+    )
+    try:
+        out, err = process.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(process.pid, signal.SIGKILL)
+        process.communicate()
+        raise
+    if process.returncode:
+        raise subprocess.CalledProcessError(process.returncode, command, out, err)
