@@ -15,9 +15,10 @@ def Screenshot(html, png, user_data_dir):
     """The page ``html`` rendered at 800×600, as an RGB array."""
     # Headless chromium now and then hangs on this loaded machine (about one
     # screenshot in five, whatever the page): up to three attempts. A hung
-    # chromium's renderer and GPU children outlive a kill of the browser
-    # process alone and keep its profile locked, so each attempt runs in its
-    # own process group, killed whole, with a profile of its own.
+    # chromium's children can outlive a kill of the browser process alone
+    # and hold its profile (the likely reason three attempts once all hung),
+    # so each attempt runs in its own process group, killed whole, with a
+    # profile of its own.
     for attempt in range(3):
         try:
             _Run(_Command(html, png, f"{user_data_dir}-{attempt}"), timeout=60)
