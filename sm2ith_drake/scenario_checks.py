@@ -296,8 +296,8 @@ def _ValidatePeople(scenario: Scenario) -> None:
     _OneOf(s.guard_inside, ("exit", "hold"), "safety.guard_inside")
     for name in (
         "turn_speed_floor guard_steps static_guard_steps guard_deviation guard_hold "
-        "guard_gap backup_margin human_margin obstacle_margin no_closer_gap "
-        "no_closer_speed still_slack_weight approach_speed"
+        "guard_gap guard_approach backup_margin human_margin obstacle_margin "
+        "no_closer_gap no_closer_speed still_slack_weight approach_speed"
     ).split():
         _NonNegative(getattr(s, name), f"safety.{name}")
     for name in ("human_slack_weight", "no_closer_slack_weight", "human_radius"):

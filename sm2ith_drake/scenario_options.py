@@ -189,6 +189,11 @@ class SafetyConfig:
     # n.d.; docs/experiments/guard-gap-2026-11-28). 0.1 (inside the margin
     # only) did not reach that contact.
     guard_gap: float = 0.2
+    # With guard_approach > 0 (m/s), the guard gap holds only a person
+    # walking toward the robot: whose measured velocity, held for one
+    # control period, shrinks their gap to the robot's nearest body faster
+    # than guard_approach (not in the paper; 0: everyone within the gap).
+    guard_approach: float = 0.0
     # Optional (0: off, the default): also hold the barrier over the first
     # static_guard_steps steps against every tracked person standing still
     # where measured, for SM²ITH and CVMM (React's barrier already is

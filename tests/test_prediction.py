@@ -723,3 +723,51 @@ def test_guard_holds_the_people_inside_the_guard_gap():
     assert Guards(0.1, q0) == {4: 5}
     assert Guards(0.0, q0) == {}
     assert Guards(0.1, np.full_like(q0, np.nan)) == {}
+
+
+def test_guard_approach_holds_only_the_people_walking_toward_the_robot():
+    """HumanPredictorModel: with guard_gap 0.3 m and guard_approach 0.2
+    m/s, of three people measured 0.1 m from the robot's nearest body the
+    one walking at it at 0.5 m/s is guarded; the one standing (on the
+    other side, also inside the gap) and the one walking away are not;
+    guard_approach 0 guards all three."""
+    from sm2ith_drake.control.prediction.predict import HumanPredictorModel
+    from sm2ith_drake.humans.robot_view import HumanDistances
+
+    robot = MobileManipulator("stretch3")
+    q0 = np.asarray(robot.default_q, dtype=float)
+
+    def Gap(y):
+        return HumanDistances(robot, q0[None], np.array([[[0.0, y]]]))[0, 0] - 0.3
+
+    lo, hi = 0.0, 5.0  # the point on the base's +y axis 0.1 m out (bisection)
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if Gap(mid) < 0.1 else (lo, mid)
+    y = lo
+    estimate = HumanEstimate(
+        ids=np.array([1, 2, 3]),
+        positions=np.array([[0.0, y], [0.0, -y], [0.0, y]]),
+        velocities=np.array([[0.0, -0.5], [0.0, 0.0], [0.0, 0.5]]),
+    )
+
+    def Guarded(approach):
+        model = HumanPredictorModel(
+            PredictionConfig(predictor="orca_kkt", max_humans=3),
+            horizon=10,
+            time_step=0.2,
+            control_period=0.2,
+            robot=robot,
+            guard_deviation=0.05,
+            guard_hold=1.0,
+            guard_gap=0.3,
+            guard_approach=approach,
+        )
+        prediction, _ = model.Predict(
+            model.InitialState(), estimate=estimate, q0=q0, nu0=np.zeros(3)
+        )
+        return set(prediction.guard_steps_by_id)
+
+    assert Gap(-y) < 0.3  # the standing person is inside the gap too
+    assert Guarded(0.2) == {1}
+    assert Guarded(0.0) == {1, 2, 3}

@@ -158,6 +158,7 @@ def AddControlStack(
                 guard_deviation=scenario.safety.guard_deviation,
                 guard_hold=scenario.safety.guard_hold,
                 guard_gap=scenario.safety.guard_gap,
+                guard_approach=scenario.safety.guard_approach,
             ),
         )
         builder.Connect(

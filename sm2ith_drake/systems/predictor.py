@@ -60,11 +60,12 @@ class HumanPredictor(LeafSystem):
         guard_deviation: float = 0.0,
         guard_hold: float = 0.0,
         guard_gap: float = 0.0,
+        guard_approach: float = 0.0,
     ):
         """``config`` is a PredictionConfig; ``horizon`` and ``time_step``
         the MPC's; ``with_intents`` declares the ``human_intents`` input;
-        ``guard_deviation``, ``guard_hold``, ``guard_gap`` as in
-        SafetyConfig."""
+        ``guard_deviation``, ``guard_hold``, ``guard_gap``, ``guard_approach``
+        as in SafetyConfig."""
         super().__init__()
         self.model = HumanPredictorModel(
             config,
@@ -77,6 +78,7 @@ class HumanPredictor(LeafSystem):
             guard_deviation=guard_deviation,
             guard_hold=guard_hold,
             guard_gap=guard_gap,
+            guard_approach=guard_approach,
         )
         n, m = robot.num_positions, robot.num_velocities
         self._n = n

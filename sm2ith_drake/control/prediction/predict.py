@@ -62,11 +62,12 @@ class HumanPredictorModel:
         guard_deviation: float = 0.0,
         guard_hold: float = 0.0,
         guard_gap: float = 0.0,
+        guard_approach: float = 0.0,
     ):
         """``config`` is a PredictionConfig; ``horizon``, ``time_step`` are
         the MPC's; ``obstacles`` (S, 2, 2) wall segments; ``guard_deviation``,
-        ``guard_hold`` and ``guard_gap`` as in SafetyConfig (whom the MPC's
-        guard holds)."""
+        ``guard_hold``, ``guard_gap`` and ``guard_approach`` as in
+        SafetyConfig (whom the MPC's guard holds)."""
         if config.predictor not in PREDICTORS:
             raise ValueError(f"unknown predictor '{config.predictor}'")
         self.config = config
@@ -80,6 +81,7 @@ class HumanPredictorModel:
         self._share_decay = float(np.exp(-control_period / config.reciprocity.memory))
         self.guard_deviation = float(guard_deviation)
         self.guard_gap = float(guard_gap)
+        self.guard_approach = float(guard_approach)
         self.human_radius = float(human_radius)
         self.guard_hold_steps = max(1, int(np.ceil(guard_hold / control_period - 1e-9)))
         self.orca = None
@@ -193,7 +195,7 @@ class HumanPredictorModel:
         # the guard's constant-velocity motion (a second, identical barrier
         # row would only double its penalty).
         if cfg.predictor == "orca_kkt":
-            close = self._Close(estimate, distances)
+            close = self._Close(estimate, distances, q0)
             guards = UpdateGuards(
                 state.guard_steps,
                 estimate,
@@ -273,18 +275,28 @@ class HumanPredictorModel:
             )[0]
         return distances
 
-    def _Close(self, estimate, distances) -> list:
+    def _Close(self, estimate, distances, q0) -> list:
         """The ids of the people measured within guard_gap of the robot's
         nearest body (``distances``: _Distances; none with guard_gap 0 or
-        without distances)."""
+        without distances) and, with guard_approach > 0, walking toward it:
+        their measured velocity, held for one control period, shrinks that
+        gap faster than guard_approach (m/s)."""
         if self.guard_gap <= 0 or distances is None:
             return []
-        gaps = distances - self.human_radius
-        return [
-            int(i)
-            for i, g in zip(estimate.ids, gaps, strict=True)
-            if g < self.guard_gap
-        ]
+        close = (distances - self.human_radius) < self.guard_gap
+        if self.guard_approach > 0 and np.any(close):
+            delta = self.control_period
+            moved = estimate.positions[close] + delta * estimate.velocities[close]
+            after = np.full(len(moved), np.inf)
+            finite = np.all(np.isfinite(moved), axis=1)
+            if np.any(finite):
+                q0 = np.asarray(q0, dtype=float)
+                after[finite] = HumanDistances(
+                    self.robot, q0[None], moved[None, finite]
+                )[0]
+            closing = (distances[close] - after) / delta > self.guard_approach
+            close[np.flatnonzero(close)[~closing]] = False
+        return [int(i) for i in np.asarray(estimate.ids)[close]]
 
     def _RobotTrajectory(self, q0, nu0, inputs):
         """The RobotView of the robot's warm start, or None."""
