@@ -137,6 +137,7 @@ def test_the_defaults_are_the_measured_doorway_configuration():
     assert not o.guard_close
     assert SafetyConfig().guard_gamma == 1.0
     assert SafetyConfig().guard_gap == 0.2
+    assert SafetyConfig().guard_approach == 0.2
 
 
 def test_with_wait_the_overtaker_is_predicted_to_stop():
