@@ -681,7 +681,6 @@ def test_guard_holds_the_people_inside_the_guard_gap():
     from the robot's nearest body is guarded even with no plan to judge
     them against, a person 0.5 m away is not; guard_gap 0 or a non-finite
     robot state guards nobody."""
-    from sm2ith_drake.control.prediction.predict import HumanPredictorModel
     from sm2ith_drake.humans.robot_view import HumanDistances
 
     robot = MobileManipulator("stretch3")
@@ -704,16 +703,7 @@ def test_guard_holds_the_people_inside_the_guard_gap():
     )
 
     def Guards(guard_gap, q):
-        model = HumanPredictorModel(
-            PredictionConfig(predictor="orca_kkt", max_humans=2),
-            horizon=10,
-            time_step=0.2,
-            control_period=0.2,
-            robot=robot,
-            guard_deviation=0.05,
-            guard_hold=1.0,
-            guard_gap=guard_gap,
-        )
+        model = _GuardModel(robot, 2, guard_gap=guard_gap)
         prediction, state = model.Predict(
             model.InitialState(), estimate=estimate, q0=q, nu0=np.zeros(3)
         )
@@ -725,13 +715,29 @@ def test_guard_holds_the_people_inside_the_guard_gap():
     assert Guards(0.1, np.full_like(q0, np.nan)) == {}
 
 
+def _GuardModel(robot, max_humans, **guard):
+    """An ORCA-KKT HumanPredictorModel with the guard's deviation rule (0.05
+    m, held 1 s) and ``guard`` (guard_gap, guard_approach)."""
+    from sm2ith_drake.control.prediction.predict import HumanPredictorModel
+
+    return HumanPredictorModel(
+        PredictionConfig(predictor="orca_kkt", max_humans=max_humans),
+        horizon=10,
+        time_step=0.2,
+        control_period=0.2,
+        robot=robot,
+        guard_deviation=0.05,
+        guard_hold=1.0,
+        **guard,
+    )
+
+
 def test_guard_approach_holds_only_the_people_walking_toward_the_robot():
     """HumanPredictorModel: with guard_gap 0.3 m and guard_approach 0.2
     m/s, of three people measured 0.1 m from the robot's nearest body the
     one walking at it at 0.5 m/s is guarded; the one standing (on the
     other side, also inside the gap) and the one walking away are not;
     guard_approach 0 guards all three."""
-    from sm2ith_drake.control.prediction.predict import HumanPredictorModel
     from sm2ith_drake.humans.robot_view import HumanDistances
 
     robot = MobileManipulator("stretch3")
@@ -752,17 +758,7 @@ def test_guard_approach_holds_only_the_people_walking_toward_the_robot():
     )
 
     def Guarded(approach):
-        model = HumanPredictorModel(
-            PredictionConfig(predictor="orca_kkt", max_humans=3),
-            horizon=10,
-            time_step=0.2,
-            control_period=0.2,
-            robot=robot,
-            guard_deviation=0.05,
-            guard_hold=1.0,
-            guard_gap=0.3,
-            guard_approach=approach,
-        )
+        model = _GuardModel(robot, 3, guard_gap=0.3, guard_approach=approach)
         prediction, _ = model.Predict(
             model.InitialState(), estimate=estimate, q0=q0, nu0=np.zeros(3)
         )
