@@ -200,7 +200,9 @@ class SafetyConfig:
     # +0.158]), at or above CVMM and React at every count; runs with
     # contact 83 against 79 and the robot closing in 46 against 40 (n.d.);
     # the pursuer 0 contacts in 10 as before; pick-and-place's contacts
-    # unchanged (docs/experiments/guard-approach-b55d319).
+    # unchanged (docs/experiments/guard-approach-b55d319). In the final
+    # re-run on one machine (docs/experiments/final-e4dec26) that cell
+    # gave SM²ITH 75 arrivals against CVMM's 62 and React's 60.
     guard_approach: float = 0.2
     # Optional (0: off, the default): also hold the barrier over the first
     # static_guard_steps steps against every tracked person standing still
